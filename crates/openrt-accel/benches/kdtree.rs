@@ -1,0 +1,157 @@
+//! Build and traversal throughput of the SAH kd-tree, optionally beside Embree 3.
+//!
+//! `cargo bench -p openrt-accel --bench kdtree` (add `--features embree` for
+//! the peer). Set `OPENRT_BENCH_SIZES=10000,100000` to pick mesh sizes.
+//! After criterion's figures it prints a summary table of medians measured
+//! in the same run, with the kd-tree/Embree ratios.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use criterion::{BenchmarkId, Criterion, Throughput};
+use glam::Vec3;
+use openrt_accel::{Aabb, KdTree, Ray, Triangle, meshgen};
+
+fn sizes() -> Vec<usize> {
+    std::env::var("OPENRT_BENCH_SIZES").ok().map_or_else(
+        || vec![10_000, 100_000, 1_000_000],
+        |s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect(),
+    )
+}
+
+fn mesh(n: usize) -> Vec<Triangle> {
+    meshgen::bumpy_sphere(n, 42, 0.5)
+}
+
+fn ray_sets(tris: &[Triangle]) -> [(&'static str, Vec<Ray>); 2] {
+    let b = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t)));
+    [
+        (
+            "camera",
+            meshgen::camera_rays(Vec3::new(0.5, 0.8, -3.5), Vec3::ZERO, 256, 256, 50.0),
+        ),
+        ("random", meshgen::random_rays(65_536, 7, b)),
+    ]
+}
+
+fn median_secs(reps: usize, mut f: impl FnMut()) -> f64 {
+    let mut v: Vec<f64> = (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v[reps / 2]
+}
+
+fn bench_build(c: &mut Criterion) {
+    let mut g = c.benchmark_group("build_sah");
+    g.sample_size(10);
+    for n in sizes() {
+        let tris = mesh(n);
+        g.throughput(Throughput::Elements(tris.len() as u64));
+        g.bench_with_input(BenchmarkId::from_parameter(n), &tris, |b, t| {
+            b.iter(|| KdTree::build_sah(black_box(t.clone())).unwrap());
+        });
+    }
+    g.finish();
+}
+
+fn bench_trace(c: &mut Criterion) {
+    for n in sizes() {
+        let tris = mesh(n);
+        let tree = KdTree::build_sah(tris.clone()).unwrap();
+        #[cfg(feature = "embree")]
+        let emb = openrt_accel::EmbreeMesh::new(&tris, true).unwrap();
+        let mut g = c.benchmark_group(format!("trace_{n}"));
+        g.sample_size(10);
+        for (kind, rays) in ray_sets(&tris) {
+            g.throughput(Throughput::Elements(rays.len() as u64));
+            g.bench_function(format!("kd_closest_{kind}"), |b| {
+                b.iter(|| rays.iter().filter(|r| tree.intersect(r).is_some()).count());
+            });
+            g.bench_function(format!("kd_occluded_{kind}"), |b| {
+                b.iter(|| rays.iter().filter(|r| tree.occluded(r)).count());
+            });
+            #[cfg(feature = "embree")]
+            {
+                g.bench_function(format!("embree_closest_{kind}"), |b| {
+                    b.iter(|| rays.iter().filter(|r| emb.intersect(r).is_some()).count());
+                });
+                g.bench_function(format!("embree_occluded_{kind}"), |b| {
+                    b.iter(|| rays.iter().filter(|r| emb.occluded(r)).count());
+                });
+            }
+        }
+        g.finish();
+    }
+}
+
+/// One table of medians from this run (7 repetitions each).
+fn summary() {
+    println!("\nsummary (median of 7, this run)");
+    println!(
+        "{:>9} {:>12} {:>8} {:>10} {:>10} {:>10} {:>7}",
+        "tris", "build Mt/s", "rays", "query", "kd Mr/s", "embree", "ratio"
+    );
+    for n in sizes() {
+        let tris = mesh(n);
+        let reps = if n >= 1_000_000 { 3 } else { 7 };
+        let mut tree = None;
+        let s = median_secs(reps, || tree = Some(KdTree::build_sah(tris.clone()).unwrap()));
+        let tree = tree.unwrap();
+        let build = tris.len() as f64 / s / 1e6;
+        #[cfg(feature = "embree")]
+        let emb = openrt_accel::EmbreeMesh::new(&tris, true).unwrap();
+        for (kind, rays) in ray_sets(&tris) {
+            for query in ["closest", "occluded"] {
+                let kd = median_secs(7, || {
+                    black_box(if query == "closest" {
+                        rays.iter().filter(|r| tree.intersect(r).is_some()).count()
+                    } else {
+                        rays.iter().filter(|r| tree.occluded(r)).count()
+                    });
+                });
+                let kd_mrays = rays.len() as f64 / kd / 1e6;
+                #[cfg(feature = "embree")]
+                let (emb_s, ratio) = {
+                    let e = median_secs(7, || {
+                        black_box(if query == "closest" {
+                            rays.iter().filter(|r| emb.intersect(r).is_some()).count()
+                        } else {
+                            rays.iter().filter(|r| emb.occluded(r)).count()
+                        });
+                    });
+                    let e_mrays = rays.len() as f64 / e / 1e6;
+                    (format!("{e_mrays:.2}"), format!("{:.2}", kd_mrays / e_mrays))
+                };
+                #[cfg(not(feature = "embree"))]
+                let (emb_s, ratio) = ("-".to_string(), "-".to_string());
+                println!(
+                    "{:>9} {build:>12.2} {kind:>8} {query:>10} {kd_mrays:>10.2} {emb_s:>10} {ratio:>7}",
+                    tris.len()
+                );
+            }
+        }
+        let st = tree.stats();
+        println!(
+            "          tree: {} nodes, {} leaves ({} empty), {} refs ({:.2}/tri), depth {}",
+            st.nodes,
+            st.leaves,
+            st.empty_leaves,
+            st.references,
+            st.references as f64 / tris.len() as f64,
+            st.depth
+        );
+    }
+}
+
+fn main() {
+    let mut c = Criterion::default().configure_from_args();
+    bench_build(&mut c);
+    bench_trace(&mut c);
+    c.final_summary();
+    summary();
+}

@@ -1,0 +1,187 @@
+//! The cheap kd-tree builder for objects with unstructured motion.
+//!
+//! Wald, Benthin & Slusallek (2003) rebuild the tree of an object whose
+//! geometry changes every frame with a cheaper builder: a simpler cost
+//! estimate, a shallower tree, and leaves allowed to grow with depth by a
+//! constant factor. Here:
+//! - SAH estimated on `bins` uniform bins of the longest axis of the cell,
+//!   from the primitives' boxes (no event sorting, no perfect splits:
+//!   straddling boxes are only clamped to the child cells);
+//! - a leaf is made as soon as a node holds at most
+//!   `min_leaf * leaf_growth^depth` primitives;
+//! - depth limited to `depth_factor` times the SAH builder's limit.
+
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD};
+use crate::sah_build::{BuiltTree, default_max_depth};
+use crate::{Aabb, AccelError, Triangle};
+
+/// Parameters of the fast builder.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FastParams {
+    /// Number of bins on the split axis.
+    pub bins: usize,
+    /// Largest leaf at the root.
+    pub min_leaf: f32,
+    /// Factor by which the largest leaf grows at each level.
+    pub leaf_growth: f32,
+    /// Depth limit as a fraction of the SAH builder's.
+    pub depth_factor: f32,
+    /// Cost of one traversal step.
+    pub traversal_cost: f32,
+    /// Cost of one ray/triangle test.
+    pub intersection_cost: f32,
+}
+
+impl Default for FastParams {
+    fn default() -> Self {
+        Self {
+            bins: 16,
+            min_leaf: 2.0,
+            leaf_growth: 1.15,
+            depth_factor: 0.75,
+            traversal_cost: 1.0,
+            intersection_cost: 0.5,
+        }
+    }
+}
+
+pub(crate) fn build_fast(tris: &[Triangle], valid: &[bool], params: &FastParams) -> Result<BuiltTree, AccelError> {
+    if tris.len() > MAX_FIELD as usize {
+        return Err(AccelError::TooManyPrimitives {
+            count: tris.len(),
+            limit: MAX_FIELD as usize,
+        });
+    }
+    let mut items = Vec::with_capacity(tris.len());
+    let mut bounds = Aabb::EMPTY;
+    for (i, t) in tris.iter().enumerate() {
+        if valid[i] {
+            let b = Aabb::from_points(t);
+            bounds = bounds.union(b);
+            items.push((i as u32, b));
+        }
+    }
+    let max_depth = ((default_max_depth(items.len()) as f32 * params.depth_factor) as usize).min(MAX_DEPTH - 1);
+    let mut b = Fast {
+        params: *params,
+        nodes: Vec::with_capacity(items.len()),
+        prim_ids: Vec::with_capacity(items.len() * 2),
+        max_depth,
+        depth_reached: 0,
+    };
+    if items.is_empty() {
+        b.nodes.push(KdNode::leaf(0, 0));
+    } else {
+        b.node(bounds, items, 0)?;
+    }
+    Ok(BuiltTree {
+        nodes: b.nodes,
+        prim_ids: b.prim_ids,
+        bounds,
+        depth: b.depth_reached,
+    })
+}
+
+struct Fast {
+    params: FastParams,
+    nodes: Vec<KdNode>,
+    prim_ids: Vec<u32>,
+    max_depth: usize,
+    depth_reached: usize,
+}
+
+impl Fast {
+    fn leaf(&mut self, items: &[(u32, Aabb)]) -> Result<(), AccelError> {
+        let offset = self.prim_ids.len();
+        if offset > u32::MAX as usize - items.len() || items.len() > MAX_FIELD as usize {
+            return Err(AccelError::TooManyNodes {
+                limit: MAX_FIELD as usize,
+            });
+        }
+        self.prim_ids.extend(items.iter().map(|i| i.0));
+        self.nodes.push(KdNode::leaf(offset as u32, items.len() as u32));
+        Ok(())
+    }
+
+    fn node(&mut self, cell: Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<(), AccelError> {
+        self.depth_reached = self.depth_reached.max(depth);
+        let n = items.len();
+        let p = self.params;
+        let max_leaf = p.min_leaf * p.leaf_growth.powi(depth as i32);
+        if n as f32 <= max_leaf || depth >= self.max_depth {
+            return self.leaf(&items);
+        }
+        let axis = cell.longest_axis();
+        let (lo, ext) = (cell.min[axis], cell.extent()[axis]);
+        let sa = cell.surface_area();
+        if ext <= 0.0 || sa.is_nan() || sa <= 0.0 {
+            return self.leaf(&items);
+        }
+        // Bin the box starts and ends.
+        let nb = p.bins.max(2);
+        let mut starts = vec![0u32; nb];
+        let mut ends = vec![0u32; nb];
+        let scale = nb as f32 / ext;
+        let bin = |x: f32| (((x - lo) * scale) as usize).min(nb - 1);
+        for (_, b) in &items {
+            starts[bin(b.min[axis])] += 1;
+            ends[bin(b.max[axis])] += 1;
+        }
+        let ext3 = cell.extent();
+        let (k1, k2) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (cross, perim) = (ext3[k1] * ext3[k2], ext3[k1] + ext3[k2]);
+        let mut best = (f32::INFINITY, 0usize);
+        let mut nl = 0u32;
+        let mut nr = n as u32;
+        for i in 1..nb {
+            nl += starts[i - 1];
+            nr -= ends[i - 1];
+            let wl = ext * i as f32 / nb as f32;
+            let pl = 2.0 * (cross + wl * perim) / sa;
+            let pr = 2.0 * (cross + (ext - wl) * perim) / sa;
+            let c = p.traversal_cost + p.intersection_cost * (pl * nl as f32 + pr * nr as f32);
+            if c < best.0 {
+                best = (c, i);
+            }
+        }
+        if best.0 >= p.intersection_cost * n as f32 {
+            return self.leaf(&items);
+        }
+        let split = lo + ext * best.1 as f32 / nb as f32;
+        if split <= cell.min[axis] || split >= cell.max[axis] {
+            return self.leaf(&items);
+        }
+        let mut lcell = cell;
+        lcell.max[axis] = split;
+        let mut rcell = cell;
+        rcell.min[axis] = split;
+        let mut left = Vec::with_capacity(n / 2 + 1);
+        let mut right = Vec::with_capacity(n / 2 + 1);
+        for (id, b) in items {
+            if b.max[axis] <= split {
+                left.push((id, b));
+            } else if b.min[axis] >= split {
+                right.push((id, b));
+            } else {
+                left.push((id, b.intersection(lcell)));
+                right.push((id, b.intersection(rcell)));
+            }
+        }
+        if left.len() == n && right.len() == n {
+            let mut all = left;
+            all.truncate(n);
+            return self.leaf(&all);
+        }
+        let index = self.nodes.len();
+        if index >= MAX_FIELD as usize {
+            return Err(AccelError::TooManyNodes {
+                limit: MAX_FIELD as usize,
+            });
+        }
+        self.nodes.push(KdNode::interior(axis, split));
+        self.node(lcell, left, depth + 1)?;
+        let above = self.nodes.len() as u32;
+        self.nodes[index].set_above_child(above);
+        self.node(rcell, right, depth + 1)
+    }
+}

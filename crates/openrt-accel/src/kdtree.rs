@@ -1,0 +1,316 @@
+//! The object kd-tree: build, traversal and invariant checks.
+
+use std::time::Instant;
+
+use crate::fast_build::{FastParams, build_fast};
+use crate::kdnode::{KdNode, MAX_DEPTH};
+use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
+use crate::traverse::traverse;
+use crate::triangle::{intersect_triangle, is_valid_triangle};
+use crate::{Aabb, AccelError, Hit, Ray, Triangle};
+
+/// Which builder made a tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BuilderKind {
+    /// Full SAH, Wald & Havran 2006 (static and affine objects).
+    Sah,
+    /// The cheap builder for unstructured motion.
+    Fast,
+}
+
+/// Figures about a built tree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TreeStats {
+    /// Which builder made it.
+    pub builder: BuilderKind,
+    /// Triangles given.
+    pub triangles: usize,
+    /// Triangles left out: zero area or non-finite vertices.
+    pub dropped: usize,
+    /// Nodes in the flat array.
+    pub nodes: usize,
+    /// Leaves among them.
+    pub leaves: usize,
+    /// Empty leaves among those.
+    pub empty_leaves: usize,
+    /// Primitive references in leaves (a triangle can be in several).
+    pub references: usize,
+    /// Deepest leaf.
+    pub depth: usize,
+    /// Build time in milliseconds.
+    pub build_ms: f64,
+}
+
+/// A kd-tree over triangles, in a flat node array with 8-byte nodes.
+///
+/// The tree owns its triangles; `Hit::prim` is the index of the triangle in
+/// the slice given to the builder.
+#[derive(Clone, Debug)]
+pub struct KdTree {
+    nodes: Vec<KdNode>,
+    prim_ids: Vec<u32>,
+    tris: Vec<Triangle>,
+    bounds: Aabb,
+    stats: TreeStats,
+}
+
+impl KdTree {
+    /// Builds a full-SAH tree (Wald & Havran 2006) with default costs.
+    ///
+    /// Zero-area triangles and triangles with non-finite vertices are left
+    /// out (counted in [`TreeStats::dropped`]); they can never be hit.
+    pub fn build_sah(tris: Vec<Triangle>) -> Result<Self, AccelError> {
+        Self::build_sah_with(tris, &SahParams::default())
+    }
+
+    /// Builds a full-SAH tree with the given costs.
+    pub fn build_sah_with(tris: Vec<Triangle>, params: &SahParams) -> Result<Self, AccelError> {
+        let start = Instant::now();
+        let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
+        let built = build_sah(&tris, &valid, params)?;
+        Ok(Self::finish(tris, &valid, built, BuilderKind::Sah, start))
+    }
+
+    /// Builds a tree with the cheap builder for unstructured motion
+    /// (binned SAH, leaves growing with depth, shallower; see [`FastParams`]).
+    pub fn build_fast(tris: Vec<Triangle>) -> Result<Self, AccelError> {
+        Self::build_fast_with(tris, &FastParams::default())
+    }
+
+    /// Builds a tree with the cheap builder and the given parameters.
+    pub fn build_fast_with(tris: Vec<Triangle>, params: &FastParams) -> Result<Self, AccelError> {
+        let start = Instant::now();
+        let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
+        let built = build_fast(&tris, &valid, params)?;
+        Ok(Self::finish(tris, &valid, built, BuilderKind::Fast, start))
+    }
+
+    /// Builds with the given builder and its default parameters.
+    pub fn build(tris: Vec<Triangle>, builder: BuilderKind) -> Result<Self, AccelError> {
+        match builder {
+            BuilderKind::Sah => Self::build_sah(tris),
+            BuilderKind::Fast => Self::build_fast(tris),
+        }
+    }
+
+    pub(crate) fn finish(
+        tris: Vec<Triangle>,
+        valid: &[bool],
+        built: BuiltTree,
+        builder: BuilderKind,
+        start: Instant,
+    ) -> Self {
+        let BuiltTree {
+            nodes,
+            prim_ids,
+            bounds,
+            depth,
+        } = built;
+        let leaves = nodes.iter().filter(|n| n.is_leaf()).count();
+        let empty_leaves = nodes.iter().filter(|n| n.is_leaf() && n.prim_count() == 0).count();
+        let stats = TreeStats {
+            builder,
+            triangles: tris.len(),
+            dropped: valid.iter().filter(|&&v| !v).count(),
+            nodes: nodes.len(),
+            leaves,
+            empty_leaves,
+            references: prim_ids.len(),
+            depth,
+            build_ms: start.elapsed().as_secs_f64() * 1e3,
+        };
+        Self {
+            nodes,
+            prim_ids,
+            tris,
+            bounds,
+            stats,
+        }
+    }
+
+    /// Bounds of the valid triangles (the root cell).
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The triangles, indexed by `Hit::prim`.
+    #[must_use]
+    pub fn triangles(&self) -> &[Triangle] {
+        &self.tris
+    }
+
+    /// Build figures.
+    #[must_use]
+    pub fn stats(&self) -> &TreeStats {
+        &self.stats
+    }
+
+    /// The flat node array (node 0 is the root).
+    #[must_use]
+    pub fn nodes(&self) -> &[KdNode] {
+        &self.nodes
+    }
+
+    /// The closest hit in `(ray.t_min, ray.t_max)`.
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut closest = ray.t_max;
+        self.intersect_within(ray, &mut closest)
+    }
+
+    /// The closest hit closer than `*closest` (which it lowers on a hit).
+    /// Two-level traversal calls this with the distance of the best hit so far.
+    #[inline]
+    pub fn intersect_within(&self, ray: &Ray, closest: &mut f32) -> Option<Hit> {
+        let (t0, t1) = self.bounds.clip(&ray.with_interval(ray.t_min, *closest))?;
+        let mut best = None;
+        let tris = &self.tris;
+        let ids = &self.prim_ids;
+        traverse(&self.nodes, ray, t0, t1, closest, |leaf, closest| {
+            let off = leaf.prim_offset() as usize;
+            for &p in &ids[off..off + leaf.prim_count() as usize] {
+                if let Some((t, b1, b2)) = intersect_triangle(ray, &tris[p as usize], *closest) {
+                    *closest = t;
+                    best = Some(Hit { t, prim: p, b1, b2 });
+                }
+            }
+            false
+        });
+        best
+    }
+
+    /// `true` when anything is hit in `(ray.t_min, ray.t_max)` (shadow rays).
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let Some((t0, t1)) = self.bounds.clip(ray) else {
+            return false;
+        };
+        let mut closest = ray.t_max;
+        let tris = &self.tris;
+        let ids = &self.prim_ids;
+        traverse(&self.nodes, ray, t0, t1, &mut closest, |leaf, closest| {
+            let off = leaf.prim_offset() as usize;
+            ids[off..off + leaf.prim_count() as usize]
+                .iter()
+                .any(|&p| intersect_triangle(ray, &tris[p as usize], *closest).is_some())
+        })
+    }
+
+    /// Checks every structural invariant of the tree:
+    /// - child indices point forward and inside the array, every node is
+    ///   reached exactly once, depth stays under the traversal stack;
+    /// - split planes are finite and lie inside their cell;
+    /// - leaf ranges lie inside the index array, indices name valid triangles,
+    ///   no leaf names a triangle twice, every reference overlaps its cell;
+    /// - every valid triangle is referenced, and every point sampled on a
+    ///   triangle (vertices, edge midpoints, centroid) lies in a leaf that
+    ///   references it; degenerate triangles are never referenced.
+    pub fn validate(&self) -> Result<(), AccelError> {
+        let err = |s: String| Err(AccelError::Invalid(s));
+        if self.nodes.is_empty() {
+            return err("no root node".into());
+        }
+        let valid: Vec<bool> = self.tris.iter().map(is_valid_triangle).collect();
+        let mut seen = vec![false; self.nodes.len()];
+        let mut referenced = vec![false; self.tris.len()];
+        let mut stack = vec![(0u32, self.bounds, 0usize)];
+        while let Some((i, cell, depth)) = stack.pop() {
+            let iu = i as usize;
+            if iu >= self.nodes.len() {
+                return err(format!("node index {i} out of range"));
+            }
+            if std::mem::replace(&mut seen[iu], true) {
+                return err(format!("node {i} reached twice"));
+            }
+            if depth >= MAX_DEPTH {
+                return err(format!("depth {depth} exceeds the stack of {MAX_DEPTH}"));
+            }
+            let n = self.nodes[iu];
+            if n.is_leaf() {
+                let (off, cnt) = (n.prim_offset() as usize, n.prim_count() as usize);
+                let Some(list) = self.prim_ids.get(off..off + cnt) else {
+                    return err(format!("leaf {i} range {off}+{cnt} outside the index array"));
+                };
+                let mut sorted = list.to_vec();
+                sorted.sort_unstable();
+                if sorted.windows(2).any(|w| w[0] == w[1]) {
+                    return err(format!("leaf {i} names a triangle twice"));
+                }
+                for &p in list {
+                    let pu = p as usize;
+                    if pu >= self.tris.len() || !valid[pu] {
+                        return err(format!("leaf {i} names invalid triangle {p}"));
+                    }
+                    referenced[pu] = true;
+                    if Aabb::from_points(&self.tris[pu]).intersection(cell).is_empty() {
+                        return err(format!("leaf {i}: triangle {p} does not overlap its cell"));
+                    }
+                }
+                continue;
+            }
+            let (axis, split) = (n.axis(), n.split());
+            if !split.is_finite() || split < cell.min[axis] || split > cell.max[axis] {
+                return err(format!("node {i}: split {split} on axis {axis} outside its cell"));
+            }
+            let above = n.above_child();
+            if above <= i + 1 {
+                return err(format!("node {i}: above child {above} does not point forward"));
+            }
+            let (mut l, mut r) = (cell, cell);
+            l.max[axis] = split;
+            r.min[axis] = split;
+            stack.push((i + 1, l, depth + 1));
+            stack.push((above, r, depth + 1));
+        }
+        if let Some(i) = seen.iter().position(|s| !s) {
+            return err(format!("node {i} is unreachable"));
+        }
+        if let Some(p) = (0..self.tris.len()).find(|&p| valid[p] && !referenced[p]) {
+            return err(format!("triangle {p} is in no leaf"));
+        }
+        for (p, tri) in self.tris.iter().enumerate() {
+            if !valid[p] {
+                continue;
+            }
+            // Sample points in f64 so they lie exactly on the triangle.
+            let [a, b, c] = tri.map(|v| v.as_dvec3());
+            let samples = [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5, (a + b + c) / 3.0];
+            for s in samples {
+                if !self.point_leaves_reference(s, p as u32) {
+                    return err(format!("point {s} of triangle {p} lies in no leaf that names it"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `true` when some leaf whose closed cell contains `p` references `prim`.
+    fn point_leaves_reference(&self, p: glam::DVec3, prim: u32) -> bool {
+        let mut stack = vec![0u32];
+        while let Some(i) = stack.pop() {
+            let n = self.nodes[i as usize];
+            if n.is_leaf() {
+                let off = n.prim_offset() as usize;
+                if self.prim_ids[off..off + n.prim_count() as usize].contains(&prim) {
+                    return true;
+                }
+                continue;
+            }
+            let (axis, split) = (n.axis(), f64::from(n.split()));
+            if p[axis] <= split {
+                stack.push(i + 1);
+            }
+            if p[axis] >= split {
+                stack.push(n.above_child());
+            }
+        }
+        false
+    }
+
+    /// Bounds of the part of triangle `prim` inside `cell` (for tests and tools).
+    #[must_use]
+    pub fn clipped_triangle_bounds(&self, prim: u32, cell: &Aabb) -> Aabb {
+        clipped_bounds(&self.tris[prim as usize], cell)
+    }
+}

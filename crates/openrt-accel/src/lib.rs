@@ -1,0 +1,59 @@
+//! # openrt-accel
+//!
+//! The kernels of OpenRT-rs: rays, boxes, the watertight ray/triangle test,
+//! object kd-trees built with the full SAH, and iterative front-to-back
+//! traversal (closest hit and any hit). It knows nothing of scenes, objects
+//! or shading; the two-level layer in `openrt-core` sits on top of it.
+//!
+//! Papers behind it:
+//! - Woop, Benthin & Wald, *Watertight Ray/Triangle Intersection*, JCGT 2013.
+//! - Wald & Havran, *On building fast kd-trees for ray tracing, and on doing
+//!   that in O(N log N)*, IEEE RT 2006.
+//! - Wald, Benthin & Slusallek, *A Flexible and Scalable Rendering Engine for
+//!   Interactive 3D Graphics* / *Distributed Interactive Ray Tracing of
+//!   Dynamic Scenes* (2002/2003), for the two-level method this crate serves.
+//!
+//! ```
+//! use glam::Vec3;
+//! use openrt_accel::{KdTree, Ray, meshgen};
+//!
+//! let tree = KdTree::build_sah(meshgen::bumpy_sphere(2_000, 7, 0.1)).unwrap();
+//! tree.validate().unwrap();
+//! let ray = Ray::infinite(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
+//! let hit = tree.intersect(&ray).expect("the sphere is in front of the ray");
+//! assert!(hit.t > 2.5 && hit.t < 4.5);
+//! assert!(tree.occluded(&ray));
+//! ```
+#![cfg_attr(docsrs, feature(doc_cfg))]
+
+mod aabb;
+mod error;
+mod fast_build;
+mod hit;
+mod kdnode;
+mod kdtree;
+mod numeric;
+mod ray;
+mod sah_build;
+mod toplevel;
+mod traverse;
+mod triangle;
+
+#[cfg(feature = "embree")]
+mod embree_peer;
+pub mod meshgen;
+pub mod oracle;
+
+pub use aabb::Aabb;
+#[cfg(feature = "embree")]
+pub use embree_peer::EmbreeMesh;
+pub use error::AccelError;
+pub use fast_build::FastParams;
+pub use hit::Hit;
+pub use kdnode::{KdNode, MAX_DEPTH};
+pub use kdtree::{BuilderKind, KdTree, TreeStats};
+pub use ray::Ray;
+pub use sah_build::{SahParams, default_max_depth};
+pub use toplevel::InstanceBsp;
+pub use traverse::traverse;
+pub use triangle::{TriHit, Triangle, intersect_triangle, is_valid_triangle};

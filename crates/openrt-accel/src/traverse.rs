@@ -1,0 +1,117 @@
+//! Iterative front-to-back kd-tree traversal, shared by object trees and the
+//! top-level instance tree.
+
+use crate::Ray;
+use crate::kdnode::{KdNode, MAX_DEPTH};
+use crate::numeric::gamma;
+
+/// Relative margin by which a split distance is widened on both sides.
+///
+/// NOTE: `t_split = (split - o) * inv_dir` carries three roundings; a cell
+/// whose true interval touches the ray by less than that error would be
+/// skipped and a triangle in it missed. Widening every cell's parameter
+/// interval by `2 gamma(3)` relative (Woop et al., JCGT 2013, section 4
+/// for boxes; the same argument for kd cells) visits such cells instead.
+const ENLARGE: f32 = 2.0 * gamma(3);
+
+/// A deferred far child with its parameter interval.
+#[derive(Clone, Copy, Default)]
+struct StackEntry {
+    node: u32,
+    t_min: f32,
+    t_max: f32,
+}
+
+/// Walks the cells pierced by `ray` over `[t0, t1]` front to back and calls
+/// `leaf(node, closest)` for each non-empty leaf, where `closest` is the
+/// current closest hit distance, which the callback lowers when it finds a
+/// closer hit. A hit found in a leaf may lie beyond that leaf's cell, so
+/// traversal does not stop at the first hit: it pops and skips every deferred
+/// cell that begins beyond `closest`.
+///
+/// The callback returns `true` to stop at once (any-hit queries).
+/// Returns `true` when the callback stopped the walk.
+///
+/// Node indices must form a valid tree (checked by the trees' `validate`).
+#[inline]
+pub fn traverse<L>(nodes: &[KdNode], ray: &Ray, t0: f32, t1: f32, closest: &mut f32, mut leaf: L) -> bool
+where
+    L: FnMut(KdNode, &mut f32) -> bool,
+{
+    if nodes.is_empty() || t0.is_nan() || t1.is_nan() || t0 > t1 {
+        return false;
+    }
+    let mut stack = [StackEntry::default(); MAX_DEPTH];
+    let mut sp = 0usize;
+    let mut node = 0u32;
+    let (mut t_min, mut t_max) = (t0, t1);
+    let org = ray.origin.to_array();
+    let dir = ray.dir.to_array();
+    let inv = ray.inv_dir.to_array();
+    loop {
+        let n = nodes[node as usize];
+        if !n.is_leaf() {
+            let axis = n.axis();
+            let split = n.split();
+            let o = org[axis];
+            let d = dir[axis];
+            let below = node + 1;
+            let above = n.above_child();
+            // NOTE: exact test: a ray with a zero component (either sign) never
+            // crosses this plane; its side is the origin's, both if it lies in it.
+            if d == 0.0 {
+                if o < split {
+                    node = below;
+                } else if o > split {
+                    node = above;
+                } else {
+                    stack[sp] = StackEntry {
+                        node: above,
+                        t_min,
+                        t_max,
+                    };
+                    sp += 1;
+                    node = below;
+                }
+                continue;
+            }
+            let t_split = (split - o) * inv[axis];
+            // The side of the origin is exact (sign of a correctly rounded difference).
+            let below_first = o < split || (o == split && d < 0.0);
+            let (first, second) = if below_first { (below, above) } else { (above, below) };
+            let margin = t_split.abs() * ENLARGE;
+            if t_split <= 0.0 || t_split - margin > t_max {
+                node = first;
+            } else if t_split + margin < t_min {
+                node = second;
+            } else {
+                stack[sp] = StackEntry {
+                    node: second,
+                    t_min: (t_split - margin).max(t_min),
+                    t_max,
+                };
+                sp += 1;
+                node = first;
+                t_max = (t_split + margin).min(t_max);
+            }
+            continue;
+        }
+        if n.prim_count() > 0 && leaf(n, closest) {
+            return true;
+        }
+        // Pop, skipping cells that start beyond the closest hit.
+        loop {
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            let e = stack[sp];
+            if e.t_min <= *closest {
+                node = e.node;
+                t_min = e.t_min;
+                t_max = e.t_max;
+                break;
+            }
+        }
+    }
+}

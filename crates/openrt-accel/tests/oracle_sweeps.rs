@@ -1,0 +1,145 @@
+//! Seeded sweeps and property tests: kd-tree answers == brute-force f64 oracle.
+
+use glam::Vec3;
+use openrt_accel::oracle::BruteForce;
+use openrt_accel::{Aabb, KdTree, Ray, Triangle, meshgen};
+use proptest::prelude::*;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+/// Builds, validates and checks every ray (closest and any-hit with a random cut-off).
+fn check_all(tris: &[Triangle], rays: &[Ray], seed: u64) -> usize {
+    let tree = KdTree::build_sah(tris.to_vec()).expect("build");
+    tree.validate().expect("valid tree");
+    let oracle = BruteForce::new(tris);
+    let mut rng = SmallRng::seed_from_u64(seed);
+    let mut hits = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        let got = tree.intersect(ray);
+        hits += usize::from(got.is_some());
+        if let Err(e) = oracle.check_closest(ray, got) {
+            panic!("ray {i} {ray:?}: {e}");
+        }
+        let cut = Ray::new(ray.origin, ray.dir, 0.0, rng.random_range(0.0..6.0));
+        if let Err(e) = oracle.check_occluded(&cut, tree.occluded(&cut)) {
+            panic!("shadow ray {i} {cut:?}: {e}");
+        }
+    }
+    hits
+}
+
+#[test]
+fn random_soups_match_the_oracle() {
+    for seed in 0..6 {
+        let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let tris = meshgen::random_soup(1500, seed, b, 0.2);
+        let rays = meshgen::random_rays(1500, seed + 100, b);
+        let hits = check_all(&tris, &rays, seed);
+        assert!(hits > 200, "seed {seed}: only {hits} hits, the sweep tests too little");
+    }
+}
+
+#[test]
+fn closed_meshes_match_the_oracle() {
+    for seed in 0..3 {
+        let tris = meshgen::bumpy_sphere(3000, seed, 0.3);
+        let b = Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3));
+        let mut rays = meshgen::random_rays(1500, seed + 7, b);
+        rays.extend(meshgen::camera_rays(
+            Vec3::new(0.3, 0.4, -4.0),
+            Vec3::ZERO,
+            40,
+            30,
+            40.0,
+        ));
+        let hits = check_all(&tris, &rays, seed);
+        assert!(hits > 500);
+    }
+}
+
+#[test]
+fn camera_rays_over_a_grid_match_the_oracle() {
+    let tris = meshgen::grid(24, 24);
+    let rays = meshgen::camera_rays(Vec3::new(12.0, 9.0, -20.0), Vec3::new(12.0, 12.0, 0.0), 48, 48, 60.0);
+    let hits = check_all(&tris, &rays, 3);
+    assert!(hits > 1000);
+}
+
+fn coord() -> impl Strategy<Value = f32> {
+    -4.0f32..4.0
+}
+
+fn vec3() -> impl Strategy<Value = Vec3> {
+    (coord(), coord(), coord()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+}
+
+fn triangle() -> impl Strategy<Value = Triangle> {
+    (vec3(), vec3(), vec3()).prop_map(|(a, b, c)| [a, b, c])
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, ..ProptestConfig::default() })]
+
+    #[test]
+    fn tree_agrees_with_oracle(tris in prop::collection::vec(triangle(), 1..80),
+                               rays in prop::collection::vec((vec3(), vec3()), 1..40)) {
+        let tree = KdTree::build_sah(tris.clone()).unwrap();
+        prop_assert!(tree.validate().is_ok(), "{:?}", tree.validate());
+        let oracle = BruteForce::new(&tris);
+        for (o, d) in rays {
+            let ray = Ray::infinite(o * 2.0, d);
+            if !ray.is_valid() { continue; }
+            let r = oracle.check_closest(&ray, tree.intersect(&ray));
+            prop_assert!(r.is_ok(), "{:?}", r);
+            let r = oracle.check_occluded(&ray, tree.occluded(&ray));
+            prop_assert!(r.is_ok(), "{:?}", r);
+        }
+    }
+
+    #[test]
+    fn axis_aligned_rays_agree_with_oracle(tris in prop::collection::vec(triangle(), 1..60),
+                                           o in vec3(), axis in 0usize..3, neg in any::<bool>(),
+                                           zero_signs in any::<[bool; 3]>()) {
+        // Snap vertices to a coarse lattice so rays often lie in split planes
+        // and run along triangle edges.
+        let snap = |v: Vec3| (v * 2.0).round() / 2.0;
+        let tris: Vec<Triangle> = tris.iter().map(|t| t.map(snap)).collect();
+        let tree = KdTree::build_sah(tris.clone()).unwrap();
+        prop_assert!(tree.validate().is_ok());
+        let mut d = Vec3::new(
+            if zero_signs[0] { -0.0 } else { 0.0 },
+            if zero_signs[1] { -0.0 } else { 0.0 },
+            if zero_signs[2] { -0.0 } else { 0.0 });
+        d[axis] = if neg { -1.0 } else { 1.0 };
+        let ray = Ray::infinite(snap(o), d);
+        let oracle = BruteForce::new(&tris);
+        let r = oracle.check_closest(&ray, tree.intersect(&ray));
+        prop_assert!(r.is_ok(), "{:?}", r);
+        let r = oracle.check_occluded(&ray, tree.occluded(&ray));
+        prop_assert!(r.is_ok(), "{:?}", r);
+    }
+}
+
+#[test]
+fn fast_builder_trees_match_the_oracle() {
+    for seed in 0..4 {
+        let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let mut tris = meshgen::random_soup(2000, seed, b, 0.15);
+        tris.extend(meshgen::bumpy_sphere(2000, seed, 0.3));
+        tris.extend(
+            meshgen::grid(8, 8)
+                .iter()
+                .map(|t| t.map(|v| v * 0.25 - Vec3::new(1.0, 1.0, 0.0))),
+        );
+        let tree = KdTree::build_fast(tris.clone()).unwrap();
+        tree.validate().unwrap();
+        assert_eq!(tree.stats().builder, openrt_accel::BuilderKind::Fast);
+        let sah = KdTree::build_sah(tris.clone()).unwrap();
+        assert!(tree.stats().depth <= sah.stats().depth, "fast trees are shallower");
+        let oracle = BruteForce::new(&tris);
+        for ray in meshgen::random_rays(1500, seed + 50, b) {
+            oracle.check_closest(&ray, tree.intersect(&ray)).unwrap();
+            oracle.check_occluded(&ray, tree.occluded(&ray)).unwrap();
+        }
+    }
+}

@@ -1,0 +1,116 @@
+//! The top-level instance BSP (Algorithm 1 of Wald, Benthin & Slusallek 2003).
+
+use glam::Vec3;
+use openrt_accel::{Aabb, InstanceBsp, Ray, traverse};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+fn random_boxes(n: usize, seed: u64, max_size: f32) -> Vec<Aabb> {
+    let mut rng = SmallRng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let c = Vec3::new(
+                rng.random_range(-50.0..50.0),
+                rng.random_range(-50.0..50.0),
+                rng.random_range(-5.0..5.0),
+            );
+            let h = Vec3::new(
+                rng.random_range(0.1..max_size),
+                rng.random_range(0.1..max_size),
+                rng.random_range(0.1..max_size),
+            );
+            Aabb::new(c - h, c + h)
+        })
+        .collect()
+}
+
+#[test]
+fn builds_valid_trees_over_random_and_overlapping_boxes() {
+    for (n, size) in [(1, 1.0), (2, 1.0), (100, 2.0), (1000, 4.0), (500, 60.0)] {
+        let boxes = random_boxes(n, n as u64, size);
+        let bsp = InstanceBsp::build(&boxes).unwrap();
+        bsp.validate(&boxes).unwrap_or_else(|e| panic!("{n} boxes: {e}"));
+        assert!(bsp.references() >= n);
+    }
+}
+
+#[test]
+fn empty_and_degenerate_inputs() {
+    let bsp = InstanceBsp::build(&[]).unwrap();
+    assert_eq!(bsp.nodes().len(), 1);
+    let boxes = vec![
+        Aabb::EMPTY,
+        Aabb::new(Vec3::ZERO, Vec3::ONE),
+        Aabb::new(Vec3::splat(f32::NAN), Vec3::ONE),
+    ];
+    let bsp = InstanceBsp::build(&boxes).unwrap();
+    bsp.validate(&boxes).unwrap();
+    // Identical boxes: no plane separates them; one leaf.
+    let same = vec![Aabb::new(Vec3::ZERO, Vec3::ONE); 50];
+    let bsp = InstanceBsp::build(&same).unwrap();
+    assert_eq!(bsp.nodes().len(), 1);
+    bsp.validate(&same).unwrap();
+    // Flat boxes lying in one plane.
+    let flat: Vec<Aabb> = (0..20)
+        .map(|i| Aabb::new(Vec3::new(i as f32, 0.0, 0.0), Vec3::new(i as f32 + 0.5, 1.0, 0.0)))
+        .collect();
+    let bsp = InstanceBsp::build(&flat).unwrap();
+    bsp.validate(&flat).unwrap();
+}
+
+#[test]
+fn planes_are_at_box_boundaries_nearest_the_centre_on_the_crowded_side() {
+    // Three boxes crowd the left; the root plane must be the boundary
+    // nearest the centre on the left side.
+    let boxes = vec![
+        Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 1.0)),
+        Aabb::new(Vec3::new(1.5, 0.0, 0.0), Vec3::new(2.0, 1.0, 1.0)),
+        Aabb::new(Vec3::new(3.0, 0.0, 0.0), Vec3::new(4.0, 1.0, 1.0)),
+        Aabb::new(Vec3::new(9.0, 0.0, 0.0), Vec3::new(10.0, 1.0, 1.0)),
+    ];
+    let bsp = InstanceBsp::build(&boxes).unwrap();
+    let root = bsp.nodes()[0];
+    assert!(!root.is_leaf());
+    assert_eq!(root.axis(), 0);
+    assert_eq!(root.split(), 4.0, "nearest boundary to the centre 5 on the left");
+    bsp.validate(&boxes).unwrap();
+}
+
+#[test]
+fn traversal_finds_every_box_a_ray_crosses_front_to_back() {
+    let boxes = random_boxes(400, 9, 3.0);
+    let bsp = InstanceBsp::build(&boxes).unwrap();
+    let mut rng = SmallRng::seed_from_u64(10);
+    for _ in 0..300 {
+        let o = Vec3::new(
+            rng.random_range(-60.0..60.0),
+            rng.random_range(-60.0..60.0),
+            rng.random_range(-8.0..8.0),
+        );
+        let d = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-0.2..0.2),
+        );
+        let ray = Ray::infinite(o, d);
+        let expected: Vec<u32> = (0..boxes.len() as u32)
+            .filter(|&i| boxes[i as usize].clip(&ray).is_some())
+            .collect();
+        let mut found = Vec::new();
+        if let Some((t0, t1)) = bsp.bounds().clip(&ray) {
+            let mut closest = f32::INFINITY;
+            traverse(bsp.nodes(), &ray, t0, t1, &mut closest, |leaf, _| {
+                found.extend(
+                    bsp.leaf_items(leaf)
+                        .iter()
+                        .copied()
+                        .filter(|&i| boxes[i as usize].clip(&ray).is_some()),
+                );
+                false
+            });
+        }
+        found.sort_unstable();
+        found.dedup();
+        assert_eq!(found, expected);
+    }
+}

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# One-time set-up of a fresh Debian machine: system packages and the pinned
+# Rust toolchain. Safe to run again.
+set -euo pipefail
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+# Debian packages: a C toolchain for -sys crates, pkg-config.
+pkgs=(build-essential pkg-config)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}"
+fi
+if ! command -v rustup >/dev/null 2>&1; then
+  echo "rustup is required (https://rustup.rs); install it, then run this script again" >&2
+  exit 1
+fi
+# rust-toolchain.toml pins the channel and components; this installs them.
+rustup show active-toolchain >/dev/null
+cargo fetch --locked
