@@ -2,12 +2,13 @@
 //!
 //! Wald, Benthin & Slusallek, "Distributed Interactive Ray Tracing of
 //! Dynamic Scenes" (IEEE PVG 2003), Algorithm 1: split the axis of largest
-//! extent; candidate planes lie only at instance box boundaries; the plane is
+//! extent (the next axis only if that one has no valid plane); candidate planes lie only at instance box boundaries; the plane is
 //! the candidate nearest the cell centre on the side that holds more
 //! instances (between the spatial and the object median); instances that
 //! straddle the plane go to both sides; a node becomes a leaf when no valid
-//! plane is found (no candidate inside the cell, or one that separates
-//! nothing).
+//! plane is found. Valid here means: strictly inside the cell, both children
+//! hold fewer instances than the parent, and at most half of the instances
+//! straddle (beyond that, duplication costs more than the split saves).
 //!
 //! Traversal uses the same 8-byte nodes and [`crate::traverse`] as object trees.
 
@@ -34,13 +35,13 @@ impl InstanceBsp {
                 limit: MAX_FIELD as usize,
             });
         }
-        let items: Vec<u32> = (0..boxes.len() as u32)
-            .filter(|&i| {
-                let b = &boxes[i as usize];
-                !b.is_empty() && b.is_finite()
-            })
+        let items: Vec<Item> = boxes
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| !b.is_empty() && b.is_finite())
+            .map(|(i, b)| Item { b: *b, id: i as u32 })
             .collect();
-        let bounds = items.iter().fold(Aabb::EMPTY, |a, &i| a.union(boxes[i as usize]));
+        let bounds = items.iter().fold(Aabb::EMPTY, |a, it| a.union(it.b));
         let mut b = Self {
             nodes: Vec::with_capacity(2 * items.len() + 1),
             items: Vec::with_capacity(2 * items.len()),
@@ -51,59 +52,54 @@ impl InstanceBsp {
         if items.is_empty() {
             b.nodes.push(KdNode::leaf(0, 0));
         } else {
-            b.node(boxes, bounds, items, 0, max_depth)?;
+            b.node(bounds, items, 0, max_depth)?;
         }
         Ok(b)
     }
 
-    fn leaf(&mut self, items: &[u32]) -> Result<(), AccelError> {
+    fn leaf(&mut self, items: &[Item]) -> Result<(), AccelError> {
         let offset = self.items.len();
         if offset > u32::MAX as usize - items.len() || items.len() > MAX_FIELD as usize {
             return Err(AccelError::TooManyNodes {
                 limit: MAX_FIELD as usize,
             });
         }
-        self.items.extend_from_slice(items);
+        self.items.extend(items.iter().map(|it| it.id));
         self.nodes.push(KdNode::leaf(offset as u32, items.len() as u32));
         Ok(())
     }
 
-    fn node(
-        &mut self,
-        boxes: &[Aabb],
-        cell: Aabb,
-        items: Vec<u32>,
-        depth: usize,
-        max_depth: usize,
-    ) -> Result<(), AccelError> {
+    fn node(&mut self, cell: Aabb, items: Vec<Item>, depth: usize, max_depth: usize) -> Result<(), AccelError> {
         self.depth = self.depth.max(depth);
         if items.len() <= 1 || depth >= max_depth {
             return self.leaf(&items);
         }
-        let axis = cell.longest_axis();
-        let (lo, hi) = (cell.min[axis], cell.max[axis]);
-        let centre = 0.5 * (lo + hi);
-        let left_of_centre = items
-            .iter()
-            .filter(|&&i| boxes[i as usize].center()[axis] < centre)
-            .count();
-        let prefer_left = 2 * left_of_centre >= items.len();
-        let Some(plane) = nearest_candidate(boxes, &items, axis, lo, hi, centre, prefer_left)
-            .or_else(|| nearest_candidate(boxes, &items, axis, lo, hi, centre, !prefer_left))
+        // The axis of largest extent first; the others only when it has no valid plane.
+        let ext = cell.extent();
+        let mut axes = [0usize, 1, 2];
+        axes.sort_by(|&a, &b| ext[b].total_cmp(&ext[a]));
+        let Some((axis, plane)) = axes
+            .into_iter()
+            .find_map(|axis| choose_plane(&items, &cell, axis).map(|p| (axis, p)))
         else {
             return self.leaf(&items);
         };
-        let (mut left, mut right) = (Vec::with_capacity(items.len()), Vec::with_capacity(items.len()));
-        for &i in &items {
-            let b = &boxes[i as usize];
-            let (bmin, bmax) = (b.min[axis], b.max[axis]);
-            if bmin < plane || (bmin == plane && bmax == plane) {
-                left.push(i);
-            }
-            if bmax > plane || (bmin == plane && bmax == plane) {
-                right.push(i);
-            }
+        let (nl, nr) = side_counts(&items, axis, plane);
+        // PERF: branch-free partition into exactly sized buffers.
+        let filler = Item { b: Aabb::EMPTY, id: 0 };
+        let (mut left, mut right) = (vec![filler; nl + 1], vec![filler; nr + 1]);
+        let (mut il, mut ir) = (0usize, 0usize);
+        for it in &items {
+            let (bmin, bmax) = (it.b.min[axis], it.b.max[axis]);
+            let flat_on_plane = bmin == plane && bmax == plane;
+            left[il] = *it;
+            il += usize::from(bmin < plane || flat_on_plane);
+            right[ir] = *it;
+            ir += usize::from(bmax > plane || flat_on_plane);
         }
+        left.truncate(il);
+        right.truncate(ir);
+        drop(items);
         let mut lcell = cell;
         lcell.max[axis] = plane;
         let mut rcell = cell;
@@ -115,11 +111,10 @@ impl InstanceBsp {
             });
         }
         self.nodes.push(KdNode::interior(axis, plane));
-        drop(items);
-        self.node(boxes, lcell, left, depth + 1, max_depth)?;
+        self.node(lcell, left, depth + 1, max_depth)?;
         let above = self.nodes.len() as u32;
         self.nodes[index].set_above_child(above);
-        self.node(boxes, rcell, right, depth + 1, max_depth)
+        self.node(rcell, right, depth + 1, max_depth)
     }
 
     /// The flat node array (root at 0).
@@ -212,44 +207,62 @@ impl InstanceBsp {
     }
 }
 
-/// The box boundary strictly inside `(lo, hi)` on the requested side of
-/// the centre and nearest to it, provided it separates something.
-#[allow(clippy::too_many_arguments)]
-fn nearest_candidate(
-    boxes: &[Aabb],
-    items: &[u32],
-    axis: usize,
-    lo: f32,
-    hi: f32,
-    centre: f32,
-    left: bool,
-) -> Option<f32> {
-    let mut best: Option<f32> = None;
-    for &i in items {
-        let b = &boxes[i as usize];
-        for v in [b.min[axis], b.max[axis]] {
-            let on_side = if left { v <= centre } else { v >= centre };
-            if v > lo && v < hi && on_side && best.is_none_or(|p| (v - centre).abs() < (p - centre).abs()) {
-                best = Some(v);
-            }
+/// An instance box and its index.
+#[derive(Clone, Copy)]
+struct Item {
+    b: Aabb,
+    id: u32,
+}
+
+/// Algorithm 1's plane on `axis`: the box boundary strictly inside the cell
+/// nearest the centre on the side holding more instances (the other side
+/// if that one is not valid), or `None`.
+fn choose_plane(items: &[Item], cell: &Aabb, axis: usize) -> Option<f32> {
+    let (lo, hi) = (cell.min[axis], cell.max[axis]);
+    if hi <= lo {
+        return None;
+    }
+    let centre = 0.5 * (lo + hi);
+    // One pass: which side is crowded, and the nearest boundary on each side.
+    // PERF: written without data-dependent branches (random boxes make
+    // them unpredictable); the selects compile to min/max and blends.
+    let (mut left_of_centre, mut best_l, mut best_r) = (0usize, f32::NEG_INFINITY, f32::INFINITY);
+    for it in items {
+        let (bmin, bmax) = (it.b.min[axis], it.b.max[axis]);
+        left_of_centre += usize::from(bmin + bmax < 2.0 * centre);
+        for v in [bmin, bmax] {
+            let inside = v > lo && v < hi;
+            best_l = best_l.max(if inside && v <= centre { v } else { f32::NEG_INFINITY });
+            best_r = best_r.min(if inside && v >= centre { v } else { f32::INFINITY });
         }
     }
-    let p = best?;
-    // Valid only if some instance lies entirely on one side.
+    let (first, second) = if 2 * left_of_centre >= items.len() {
+        (best_l, best_r)
+    } else {
+        (best_r, best_l)
+    };
+    [first, second]
+        .into_iter()
+        .filter(|p| p.is_finite())
+        .find(|&p| valid(items, axis, p))
+}
+
+/// Both sides lose instances and at most half of them straddle: a plane
+/// that duplicates more costs more than it separates.
+fn valid(items: &[Item], axis: usize, p: f32) -> bool {
     let n = items.len();
-    let nl = items
-        .iter()
-        .filter(|&&i| {
-            let b = &boxes[i as usize];
-            b.min[axis] < p || (b.min[axis] == p && b.max[axis] == p)
-        })
-        .count();
-    let nr = items
-        .iter()
-        .filter(|&&i| {
-            let b = &boxes[i as usize];
-            b.max[axis] > p || (b.min[axis] == p && b.max[axis] == p)
-        })
-        .count();
-    (nl < n || nr < n).then_some(p)
+    let (nl, nr) = side_counts(items, axis, p);
+    nl < n && nr < n && 2 * (nl + nr - n) <= n
+}
+
+/// Instances that go left and right of plane `p` (straddlers count twice).
+fn side_counts(items: &[Item], axis: usize, p: f32) -> (usize, usize) {
+    let (mut nl, mut nr) = (0usize, 0usize);
+    for it in items {
+        let (bmin, bmax) = (it.b.min[axis], it.b.max[axis]);
+        let flat_on_plane = bmin == p && bmax == p;
+        nl += usize::from(bmin < p || flat_on_plane);
+        nr += usize::from(bmax > p || flat_on_plane);
+    }
+    (nl, nr)
 }

@@ -15,7 +15,7 @@ use crate::numeric::gamma;
 const ENLARGE: f32 = 2.0 * gamma(3);
 
 /// A deferred far child with its parameter interval.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct StackEntry {
     node: u32,
     t_min: f32,
@@ -41,7 +41,8 @@ where
     if nodes.is_empty() || t0.is_nan() || t1.is_nan() || t0 > t1 {
         return false;
     }
-    let mut stack = [StackEntry::default(); MAX_DEPTH];
+    // PERF: the stack is not zeroed: entries are written before they are read.
+    let mut stack = [std::mem::MaybeUninit::<StackEntry>::uninit(); MAX_DEPTH];
     let mut sp = 0usize;
     let mut node = 0u32;
     let (mut t_min, mut t_max) = (t0, t1);
@@ -49,6 +50,8 @@ where
     let dir = ray.dir.to_array();
     let inv = ray.inv_dir.to_array();
     loop {
+        // NOTE: kept bounds-checked: `traverse` is public and safe, so a
+        // caller may pass any slice; the check is one predictable branch.
         let n = nodes[node as usize];
         if !n.is_leaf() {
             let axis = n.axis();
@@ -65,11 +68,11 @@ where
                 } else if o > split {
                     node = above;
                 } else {
-                    stack[sp] = StackEntry {
+                    stack[sp].write(StackEntry {
                         node: above,
                         t_min,
                         t_max,
-                    };
+                    });
                     sp += 1;
                     node = below;
                 }
@@ -85,11 +88,11 @@ where
             } else if t_split + margin < t_min {
                 node = second;
             } else {
-                stack[sp] = StackEntry {
+                stack[sp].write(StackEntry {
                     node: second,
                     t_min: (t_split - margin).max(t_min),
                     t_max,
-                };
+                });
                 sp += 1;
                 node = first;
                 t_max = (t_split + margin).min(t_max);
@@ -105,7 +108,8 @@ where
                 return false;
             }
             sp -= 1;
-            let e = stack[sp];
+            // SAFETY: entries below `sp` were written by a push.
+            let e = unsafe { stack[sp].assume_init() };
             if e.t_min <= *closest {
                 node = e.node;
                 t_min = e.t_min;

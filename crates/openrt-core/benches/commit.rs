@@ -1,0 +1,137 @@
+//! Commit costs of the two-level method.
+//!
+//! - top-level BSP rebuild for 100, 1k, 10k, 100k instances (goal: 10k < 1 ms);
+//! - fast vs SAH object build for 1k/4k/16k/64k moving triangles, with the
+//!   trace speed each tree gives (the paper's trade-off for unstructured motion).
+//!
+//! `cargo bench -p openrt-core --bench commit`; a summary table of medians
+//! from the same run follows criterion's output.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use criterion::{BenchmarkId, Criterion, Throughput};
+use glam::Vec3;
+use openrt_accel::{Aabb, BuilderKind, InstanceBsp, KdTree, Triangle, meshgen};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+/// Instance boxes spread like a forest or a museum crowd: small boxes over a
+/// wide area, a few large ones.
+fn instance_boxes(n: usize) -> Vec<Aabb> {
+    let mut rng = SmallRng::seed_from_u64(n as u64);
+    let side = (n as f32).sqrt() * 4.0;
+    (0..n)
+        .map(|i| {
+            let c = Vec3::new(
+                rng.random_range(0.0..side),
+                rng.random_range(0.0..4.0),
+                rng.random_range(0.0..side),
+            );
+            let h = if i % 97 == 0 {
+                Vec3::splat(side * 0.05)
+            } else {
+                Vec3::new(1.0, 2.0, 1.0)
+            };
+            Aabb::new(c - h, c + h)
+        })
+        .collect()
+}
+
+/// Triangles of an animart-like object: `n` small triangles spread in a box.
+fn moving_triangles(n: usize) -> Vec<Triangle> {
+    let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+    meshgen::random_soup(n, n as u64, b, 0.6 / (n as f32).cbrt())
+}
+
+fn median(reps: usize, mut f: impl FnMut()) -> f64 {
+    let mut v: Vec<f64> = (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v[reps / 2]
+}
+
+fn bench_toplevel(c: &mut Criterion) {
+    let mut g = c.benchmark_group("toplevel_rebuild");
+    for n in [100, 1_000, 10_000, 100_000] {
+        let boxes = instance_boxes(n);
+        g.throughput(Throughput::Elements(n as u64));
+        g.bench_with_input(BenchmarkId::from_parameter(n), &boxes, |b, boxes| {
+            b.iter(|| InstanceBsp::build(black_box(boxes)).unwrap());
+        });
+    }
+    g.finish();
+}
+
+fn bench_object_builders(c: &mut Criterion) {
+    let mut g = c.benchmark_group("object_build");
+    g.sample_size(10);
+    for n in [1_024, 4_096, 16_384, 65_536] {
+        let tris = moving_triangles(n);
+        g.throughput(Throughput::Elements(n as u64));
+        for kind in [BuilderKind::Fast, BuilderKind::Sah] {
+            g.bench_with_input(BenchmarkId::new(format!("{kind:?}"), n), &tris, |b, t| {
+                b.iter(|| KdTree::build(black_box(t.clone()), kind).unwrap());
+            });
+        }
+    }
+    g.finish();
+}
+
+fn summary() {
+    println!("\nsummary (medians of this run)");
+    println!(
+        "{:>9} {:>12} {:>8} {:>10}",
+        "instances", "rebuild ms", "nodes", "refs/inst"
+    );
+    for n in [100, 1_000, 10_000, 100_000] {
+        let boxes = instance_boxes(n);
+        let mut bsp = None;
+        let s = median(15, || bsp = Some(InstanceBsp::build(&boxes).unwrap()));
+        let bsp = bsp.unwrap();
+        println!(
+            "{n:>9} {:>12.3} {:>8} {:>10.2}",
+            s * 1e3,
+            bsp.nodes().len(),
+            bsp.references() as f64 / n as f64
+        );
+    }
+    println!(
+        "\n{:>7} {:>6} {:>9} {:>9} {:>7} {:>10}",
+        "tris", "build", "ms", "Mtris/s", "depth", "trace Mr/s"
+    );
+    let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+    let rays = meshgen::random_rays(50_000, 3, b);
+    for n in [1_024, 4_096, 16_384, 65_536] {
+        let tris = moving_triangles(n);
+        for kind in [BuilderKind::Fast, BuilderKind::Sah] {
+            let mut tree = None;
+            let s = median(7, || tree = Some(KdTree::build(tris.clone(), kind).unwrap()));
+            let tree = tree.unwrap();
+            let tr = median(5, || {
+                black_box(rays.iter().filter(|r| tree.intersect(r).is_some()).count());
+            });
+            println!(
+                "{n:>7} {:>6} {:>9.2} {:>9.2} {:>7} {:>10.2}",
+                format!("{kind:?}"),
+                s * 1e3,
+                n as f64 / s / 1e6,
+                tree.stats().depth,
+                rays.len() as f64 / tr / 1e6
+            );
+        }
+    }
+}
+
+fn main() {
+    let mut c = Criterion::default().configure_from_args();
+    bench_toplevel(&mut c);
+    bench_object_builders(&mut c);
+    c.final_summary();
+    summary();
+}

@@ -1,0 +1,249 @@
+//! Commit: each object pays only for what changed, then the top-level BSP
+//! is rebuilt over the instances' world boxes.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use openrt_accel::{BuilderKind, InstanceBsp, KdTree};
+
+use crate::context::Promotion;
+use crate::instance::InstanceRecord;
+use crate::object::ObjectGeometry;
+use crate::{Context, CoreError, ObjectId, Scene};
+
+/// One object tree built during a commit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildRecord {
+    /// The object.
+    pub object: ObjectId,
+    /// The builder used.
+    pub builder: BuilderKind,
+    /// Triangles in the tree.
+    pub triangles: usize,
+    /// Degenerate triangles dropped from the definition.
+    pub dropped: usize,
+    /// Build time in milliseconds.
+    pub ms: f64,
+}
+
+/// What a commit did and how long each step took.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CommitStats {
+    /// Frame number of the new scene.
+    pub frame: u64,
+    /// Object trees built (new objects: SAH; redefined objects: fast builder).
+    pub builds: Vec<BuildRecord>,
+    /// Objects whose background SAH build was started.
+    pub promotions_started: Vec<ObjectId>,
+    /// Objects whose SAH tree from the background replaced the fast tree.
+    pub promotions_swapped: Vec<ObjectId>,
+    /// Top-level BSP rebuild time in milliseconds.
+    pub toplevel_ms: f64,
+    /// Nodes of the top-level BSP.
+    pub toplevel_nodes: usize,
+    /// Instances in the scene.
+    pub instances: usize,
+    /// Whole commit in milliseconds.
+    pub total_ms: f64,
+}
+
+impl CommitStats {
+    /// Total build time of one builder, in milliseconds.
+    #[must_use]
+    pub fn build_ms(&self, builder: BuilderKind) -> f64 {
+        self.builds.iter().filter(|b| b.builder == builder).map(|b| b.ms).sum()
+    }
+
+    /// Number of trees built with one builder.
+    #[must_use]
+    pub fn build_count(&self, builder: BuilderKind) -> usize {
+        self.builds.iter().filter(|b| b.builder == builder).count()
+    }
+}
+
+impl Context {
+    /// Finishes the frame: builds what changed and publishes a new [`Scene`].
+    ///
+    /// - an object defined for the first time gets a full-SAH tree (static
+    ///   and affine objects keep it for as long as they are not redefined);
+    /// - a redefined object gets a tree from the fast builder (unstructured
+    ///   motion);
+    /// - an object built by the fast builder that has not changed for
+    ///   `promote_after` commits gets an SAH tree built on a background
+    ///   thread, swapped in by the first commit after it is ready (beyond the
+    ///   paper);
+    /// - the top-level BSP is rebuilt from the instances' world boxes.
+    ///
+    /// On error (an instance of a deleted object, an open definition) nothing
+    /// changes and the previous scene stays current.
+    pub fn commit(&mut self) -> Result<CommitStats, CoreError> {
+        let start = Instant::now();
+        self.ensure_not_defining("commit")?;
+        for (i, inst) in self.instances.iter().enumerate() {
+            if !inst.alive {
+                continue;
+            }
+            let ok = self
+                .objects
+                .get(inst.object.index as usize)
+                .is_some_and(|o| o.alive && o.generation == inst.object.generation);
+            if !ok {
+                return Err(CoreError::InstanceOfDeletedObject {
+                    instance: crate::InstanceId {
+                        index: i as u32,
+                        generation: inst.generation,
+                    },
+                    object: inst.object,
+                });
+            }
+        }
+        let mut stats = CommitStats::default();
+        let promote_after = self.promote_after;
+
+        for (index, slot) in self.objects.iter_mut().enumerate() {
+            if !slot.alive {
+                continue;
+            }
+            let id = ObjectId {
+                index: index as u32,
+                generation: slot.generation,
+            };
+            if let Some(mesh) = slot.pending.take() {
+                let builder = if slot.geometry.is_some() {
+                    BuilderKind::Fast
+                } else {
+                    BuilderKind::Sah
+                };
+                let t0 = Instant::now();
+                let triangles = mesh.triangles.len();
+                let tree = KdTree::build(mesh.triangles, builder)
+                    .map_err(|source| CoreError::Accel { call: "commit", source })?;
+                stats.builds.push(BuildRecord {
+                    object: id,
+                    builder,
+                    triangles,
+                    dropped: mesh.dropped,
+                    ms: t0.elapsed().as_secs_f64() * 1e3,
+                });
+                slot.geometry = Some(Arc::new(ObjectGeometry {
+                    tree,
+                    shading: Arc::new(mesh.shading),
+                }));
+                slot.version += 1;
+                slot.unchanged_commits = 0;
+                // A running promotion is for older geometry: its result is ignored.
+                slot.promotion = None;
+                continue;
+            }
+            let Some(geom) = &slot.geometry else { continue };
+            if geom.builder() != BuilderKind::Fast {
+                continue;
+            }
+            slot.unchanged_commits += 1;
+            // Collect a finished background build.
+            if let Some(Promotion::Running { handle, .. }) = &slot.promotion
+                && handle.is_finished()
+                && let Some(Promotion::Running { version, handle }) = slot.promotion.take()
+            {
+                let tree = handle
+                    .join()
+                    .unwrap_or_else(|_| Err(openrt_accel::AccelError::Invalid("background build panicked".into())));
+                slot.promotion = Some(Promotion::Ready {
+                    version,
+                    tree: Box::new(tree),
+                });
+            }
+            match slot.promotion.take() {
+                Some(Promotion::Ready { version, tree }) => {
+                    if let (true, Ok(tree)) = (version == slot.version, *tree) {
+                        slot.geometry = Some(Arc::new(ObjectGeometry {
+                            tree,
+                            shading: Arc::clone(&geom.shading),
+                        }));
+                        stats.promotions_swapped.push(id);
+                    }
+                }
+                Some(running) => slot.promotion = Some(running),
+                None => {
+                    if promote_after.is_some_and(|n| slot.unchanged_commits >= n) {
+                        let tris = geom.tree.triangles().to_vec();
+                        let handle = std::thread::spawn(move || KdTree::build_sah(tris));
+                        slot.promotion = Some(Promotion::Running {
+                            version: slot.version,
+                            handle,
+                        });
+                        stats.promotions_started.push(id);
+                    }
+                }
+            }
+        }
+
+        // Instances, in slot order, then the top-level BSP.
+        let records: Vec<InstanceRecord> = self
+            .instances
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.alive)
+            .filter_map(|(i, s)| {
+                let geom = self.objects[s.object.index as usize].geometry.clone()?;
+                Some(InstanceRecord::new(
+                    crate::InstanceId {
+                        index: i as u32,
+                        generation: s.generation,
+                    },
+                    s.object,
+                    geom,
+                    s.transform,
+                ))
+            })
+            .collect();
+        let t0 = Instant::now();
+        let boxes: Vec<_> = records.iter().map(|r| r.world_bounds).collect();
+        let bsp = InstanceBsp::build(&boxes).map_err(|source| CoreError::Accel { call: "commit", source })?;
+        stats.toplevel_ms = t0.elapsed().as_secs_f64() * 1e3;
+        stats.toplevel_nodes = bsp.nodes().len();
+        stats.instances = records.len();
+
+        let materials = if self.materials_dirty {
+            self.materials_dirty = false;
+            Arc::new(self.materials.clone())
+        } else {
+            Arc::clone(&self.scene.materials)
+        };
+        self.frame += 1;
+        stats.frame = self.frame;
+        self.scene = Arc::new(Scene {
+            instances: records,
+            bsp,
+            materials,
+            frame: self.frame,
+        });
+        stats.total_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(stats)
+    }
+
+    /// Blocks until every background SAH build has finished, so that the
+    /// next commit swaps them in (for deterministic playback and tests).
+    pub fn wait_for_promotions(&mut self) {
+        for slot in &mut self.objects {
+            if let Some(Promotion::Running { version, handle }) = slot.promotion.take() {
+                let tree = handle
+                    .join()
+                    .unwrap_or_else(|_| Err(openrt_accel::AccelError::Invalid("background build panicked".into())));
+                slot.promotion = Some(Promotion::Ready {
+                    version,
+                    tree: Box::new(tree),
+                });
+            }
+        }
+    }
+
+    /// Which builder made the current tree of an object (`None` before its first commit).
+    pub fn object_builder(&self, id: ObjectId) -> Result<Option<BuilderKind>, CoreError> {
+        Ok(self
+            .object_slot("object_builder", id)?
+            .geometry
+            .as_ref()
+            .map(|g| g.builder()))
+    }
+}

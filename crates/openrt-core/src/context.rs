@@ -1,0 +1,547 @@
+//! The OpenRT-style immediate API.
+
+use std::sync::Arc;
+
+use glam::{Affine3A, Mat3, Mat4, Vec2, Vec3};
+use openrt_accel::{KdTree, Triangle, is_valid_triangle};
+
+use crate::instance::check_transform;
+use crate::matrix_stack::MatrixStack;
+use crate::object::{ObjectGeometry, ObjectMesh};
+use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind, Scene};
+
+/// A background SAH build of an object that stopped changing.
+pub(crate) enum Promotion {
+    Running {
+        version: u64,
+        handle: std::thread::JoinHandle<Result<KdTree, openrt_accel::AccelError>>,
+    },
+    Ready {
+        version: u64,
+        tree: Box<Result<KdTree, openrt_accel::AccelError>>,
+    },
+}
+
+pub(crate) struct ObjectSlot {
+    pub generation: u32,
+    pub alive: bool,
+    /// A finished definition waiting for commit.
+    pub pending: Option<ObjectMesh>,
+    /// The committed geometry.
+    pub geometry: Option<Arc<ObjectGeometry>>,
+    /// Increments with each committed definition.
+    pub version: u64,
+    /// Commits since the geometry last changed.
+    pub unchanged_commits: u32,
+    pub promotion: Option<Promotion>,
+}
+
+pub(crate) struct InstanceSlot {
+    pub generation: u32,
+    pub alive: bool,
+    pub object: ObjectId,
+    pub transform: Affine3A,
+}
+
+struct Vertex {
+    p: Vec3,
+    n: Option<Vec3>,
+    uv: Option<Vec2>,
+}
+
+/// An open object definition and the state it saved.
+struct Definition {
+    id: ObjectId,
+    saved_stack: MatrixStack,
+    saved_material: MaterialId,
+    primitive: Option<PrimitiveKind>,
+    vertices: Vec<Vertex>,
+    normal: Option<Vec3>,
+    uv: Option<Vec2>,
+    mesh: ObjectMesh,
+}
+
+/// The OpenRT-style context: objects, instances, a matrix stack and
+/// materials, committed into immutable [`Scene`] frames.
+///
+/// Semantics (after OpenRT and OpenGL display lists):
+/// - `begin_object(id)` opens a definition of `id`; the matrix stack starts
+///   from the identity inside it, and the matrix stack and current material
+///   are restored by `end_object`: nothing set inside a definition leaks out.
+/// - Vertices and normals are transformed by the current matrix when they
+///   are emitted (so `push/translate/pop` inside a definition build the
+///   object from parts).
+/// - Beginning a defined object again redefines it: its geometry is replaced
+///   at the next commit; no other object changes.
+/// - `instantiate(id)` places the object with the current matrix.
+/// - Every misuse returns a [`CoreError`] naming the call; a failing call
+///   changes nothing.
+pub struct Context {
+    pub(crate) objects: Vec<ObjectSlot>,
+    free_objects: Vec<u32>,
+    pub(crate) instances: Vec<InstanceSlot>,
+    free_instances: Vec<u32>,
+    matrices: MatrixStack,
+    def: Option<Definition>,
+    pub(crate) materials: Vec<Material>,
+    pub(crate) materials_dirty: bool,
+    current_material: MaterialId,
+    pub(crate) frame: u64,
+    pub(crate) scene: Arc<Scene>,
+    pub(crate) promote_after: Option<u32>,
+}
+
+impl Default for Context {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Context {
+    /// An empty context with the default material.
+    #[must_use]
+    pub fn new() -> Self {
+        Self {
+            objects: Vec::new(),
+            free_objects: Vec::new(),
+            instances: Vec::new(),
+            free_instances: Vec::new(),
+            matrices: MatrixStack::default(),
+            def: None,
+            materials: vec![Material::default()],
+            materials_dirty: true,
+            current_material: MaterialId::DEFAULT,
+            frame: 0,
+            scene: Arc::new(Scene::default()),
+            promote_after: Some(3),
+        }
+    }
+
+    /// Commits without change after which an object rebuilt with the fast
+    /// builder gets an SAH tree built in the background (`None`: never).
+    pub fn set_promote_after(&mut self, commits: Option<u32>) {
+        self.promote_after = commits;
+    }
+
+    /// The scene of the last commit.
+    #[must_use]
+    pub fn scene(&self) -> Arc<Scene> {
+        Arc::clone(&self.scene)
+    }
+
+    // ----- objects -------------------------------------------------------
+
+    /// A new object id (like `glGenLists`); the object has no geometry until defined.
+    pub fn gen_object(&mut self) -> ObjectId {
+        let fresh = ObjectSlot {
+            generation: 0,
+            alive: true,
+            pending: None,
+            geometry: None,
+            version: 0,
+            unchanged_commits: 0,
+            promotion: None,
+        };
+        if let Some(i) = self.free_objects.pop() {
+            let slot = &mut self.objects[i as usize];
+            let generation = slot.generation;
+            *slot = ObjectSlot { generation, ..fresh };
+            ObjectId { index: i, generation }
+        } else {
+            self.objects.push(fresh);
+            ObjectId {
+                index: (self.objects.len() - 1) as u32,
+                generation: 0,
+            }
+        }
+    }
+
+    pub(crate) fn object_slot(&self, call: &'static str, id: ObjectId) -> Result<&ObjectSlot, CoreError> {
+        match self.objects.get(id.index as usize) {
+            Some(s) if s.alive && s.generation == id.generation => Ok(s),
+            _ => Err(CoreError::UnknownObject { call, id }),
+        }
+    }
+
+    fn no_definition(&self, call: &'static str) -> Result<(), CoreError> {
+        match &self.def {
+            Some(d) => Err(CoreError::InsideObject { call, object: d.id }),
+            None => Ok(()),
+        }
+    }
+
+    /// Opens the definition (or redefinition) of `id`.
+    pub fn begin_object(&mut self, id: ObjectId) -> Result<(), CoreError> {
+        if let Some(d) = &self.def {
+            return Err(CoreError::NestedObject {
+                object: id,
+                current: d.id,
+            });
+        }
+        self.object_slot("begin_object", id)?;
+        self.def = Some(Definition {
+            id,
+            saved_stack: std::mem::take(&mut self.matrices),
+            saved_material: self.current_material,
+            primitive: None,
+            vertices: Vec::new(),
+            normal: None,
+            uv: None,
+            mesh: ObjectMesh::default(),
+        });
+        Ok(())
+    }
+
+    /// Closes the open definition; its geometry replaces the object's at the next commit.
+    /// Returns the number of degenerate triangles that were dropped.
+    pub fn end_object(&mut self) -> Result<usize, CoreError> {
+        let Some(d) = &self.def else {
+            return Err(CoreError::NotInObject { call: "end_object" });
+        };
+        if let Some(p) = d.primitive {
+            return Err(CoreError::PrimitiveOpen {
+                call: "end_object",
+                current: p,
+            });
+        }
+        let d = self.def.take().expect("checked above");
+        self.matrices = d.saved_stack;
+        self.current_material = d.saved_material;
+        let dropped = d.mesh.dropped;
+        let slot = &mut self.objects[d.id.index as usize];
+        slot.pending = Some(d.mesh);
+        Ok(dropped)
+    }
+
+    /// Deletes an object. Its id becomes stale; instances still referring to
+    /// it make the next commit fail until they are removed.
+    pub fn delete_object(&mut self, id: ObjectId) -> Result<(), CoreError> {
+        if let Some(d) = &self.def
+            && d.id == id
+        {
+            return Err(CoreError::InsideObject {
+                call: "delete_object",
+                object: id,
+            });
+        }
+        self.object_slot("delete_object", id)?;
+        let slot = &mut self.objects[id.index as usize];
+        slot.alive = false;
+        slot.generation = slot.generation.wrapping_add(1);
+        slot.pending = None;
+        slot.geometry = None;
+        slot.promotion = None;
+        self.free_objects.push(id.index);
+        Ok(())
+    }
+
+    // ----- primitives ----------------------------------------------------
+
+    fn def_mut(&mut self, call: &'static str) -> Result<&mut Definition, CoreError> {
+        self.def.as_mut().ok_or(CoreError::NotInObject { call })
+    }
+
+    /// Starts a primitive.
+    pub fn begin(&mut self, kind: PrimitiveKind) -> Result<(), CoreError> {
+        let d = self.def_mut("begin")?;
+        if let Some(p) = d.primitive {
+            return Err(CoreError::PrimitiveOpen {
+                call: "begin",
+                current: p,
+            });
+        }
+        d.primitive = Some(kind);
+        d.vertices.clear();
+        Ok(())
+    }
+
+    /// Ends the primitive: its vertices become triangles of the object.
+    /// Zero-area triangles are dropped and counted.
+    pub fn end(&mut self) -> Result<(), CoreError> {
+        let material = self.current_material;
+        let d = self.def_mut("end")?;
+        let Some(kind) = d.primitive else {
+            return Err(CoreError::NotInPrimitive { call: "end" });
+        };
+        let tris = kind.triangulate(d.vertices.len())?;
+        d.primitive = None;
+        for [a, b, c] in tris {
+            let (va, vb, vc) = (&d.vertices[a], &d.vertices[b], &d.vertices[c]);
+            let tri: Triangle = [va.p, vb.p, vc.p];
+            if !is_valid_triangle(&tri) {
+                d.mesh.dropped += 1;
+                continue;
+            }
+            let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            let normals = match (va.n, vb.n, vc.n) {
+                (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+                _ => None,
+            };
+            let sh = &mut d.mesh.shading;
+            sh.has_normals.push(normals.is_some());
+            sh.normals.push(normals.unwrap_or([ng; 3]));
+            sh.uvs.push([
+                va.uv.unwrap_or_default(),
+                vb.uv.unwrap_or_default(),
+                vc.uv.unwrap_or_default(),
+            ]);
+            sh.materials.push(material);
+            d.mesh.triangles.push(tri);
+        }
+        d.vertices.clear();
+        Ok(())
+    }
+
+    /// Emits a vertex (transformed by the current matrix) with the current
+    /// normal and texture coordinate.
+    pub fn vertex(&mut self, p: Vec3) -> Result<(), CoreError> {
+        if !p.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "vertex",
+                what: format!("position {p}"),
+            });
+        }
+        let m = self.matrices.top();
+        let d = self.def_mut("vertex")?;
+        if d.primitive.is_none() {
+            return Err(CoreError::NotInPrimitive { call: "vertex" });
+        }
+        let n = d.normal.and_then(|n| {
+            let nm = Mat3::from_mat4(m).inverse().transpose();
+            let w = nm * n;
+            w.is_finite().then_some(w)
+        });
+        let (uv, wp) = (d.uv, m.transform_point3(p));
+        if !wp.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "vertex",
+                what: format!("transformed position {wp}"),
+            });
+        }
+        d.vertices.push(Vertex { p: wp, n, uv });
+        Ok(())
+    }
+
+    /// Sets the current normal (object space of the current matrix).
+    pub fn normal(&mut self, n: Vec3) -> Result<(), CoreError> {
+        if !n.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "normal",
+                what: format!("normal {n}"),
+            });
+        }
+        self.def_mut("normal")?.normal = Some(n);
+        Ok(())
+    }
+
+    /// Sets the current texture coordinate.
+    pub fn tex_coord(&mut self, uv: Vec2) -> Result<(), CoreError> {
+        if !uv.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "tex_coord",
+                what: format!("texture coordinate {uv}"),
+            });
+        }
+        self.def_mut("tex_coord")?.uv = Some(uv);
+        Ok(())
+    }
+
+    // ----- materials -----------------------------------------------------
+
+    /// Adds a material to the table.
+    pub fn create_material(&mut self, m: Material) -> Result<MaterialId, CoreError> {
+        if !m.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "create_material",
+                what: format!("material {m:?}"),
+            });
+        }
+        self.materials.push(m);
+        self.materials_dirty = true;
+        Ok(MaterialId((self.materials.len() - 1) as u32))
+    }
+
+    /// Binds the material for the following triangles.
+    pub fn material(&mut self, id: MaterialId) -> Result<(), CoreError> {
+        if id.0 as usize >= self.materials.len() {
+            return Err(CoreError::UnknownMaterial { call: "material", id });
+        }
+        self.current_material = id;
+        Ok(())
+    }
+
+    /// The current material.
+    #[must_use]
+    pub fn current_material(&self) -> MaterialId {
+        self.current_material
+    }
+
+    // ----- matrix stack --------------------------------------------------
+
+    /// The current matrix.
+    #[must_use]
+    pub fn current_matrix(&self) -> Mat4 {
+        self.matrices.top()
+    }
+
+    /// Depth of the matrix stack (1 when nothing is pushed).
+    #[must_use]
+    pub fn matrix_depth(&self) -> usize {
+        self.matrices.depth()
+    }
+
+    fn finite_affine(call: &'static str, m: &Mat4) -> Result<(), CoreError> {
+        if !m.is_finite() {
+            return Err(CoreError::NonFinite {
+                call,
+                what: format!("matrix {m}"),
+            });
+        }
+        let row = m.row(3);
+        if row != glam::Vec4::W {
+            return Err(CoreError::NotAffine {
+                call,
+                row: row.to_array(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Replaces the current matrix by the identity.
+    pub fn load_identity(&mut self) {
+        *self.matrices.top_mut() = Mat4::IDENTITY;
+    }
+
+    /// Replaces the current matrix.
+    pub fn load_matrix(&mut self, m: Mat4) -> Result<(), CoreError> {
+        Self::finite_affine("load_matrix", &m)?;
+        *self.matrices.top_mut() = m;
+        Ok(())
+    }
+
+    /// Multiplies the current matrix by `m` on the right (OpenGL order).
+    pub fn mult_matrix(&mut self, m: Mat4) -> Result<(), CoreError> {
+        Self::finite_affine("mult_matrix", &m)?;
+        let r = self.matrices.top() * m;
+        Self::finite_affine("mult_matrix", &r)?;
+        *self.matrices.top_mut() = r;
+        Ok(())
+    }
+
+    /// Multiplies by a translation.
+    pub fn translate(&mut self, t: Vec3) -> Result<(), CoreError> {
+        if !t.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "translate",
+                what: format!("offset {t}"),
+            });
+        }
+        self.mult_matrix(Mat4::from_translation(t))
+    }
+
+    /// Multiplies by a rotation of `degrees` about `axis` (any non-zero length).
+    pub fn rotate(&mut self, degrees: f32, axis: Vec3) -> Result<(), CoreError> {
+        if !degrees.is_finite() || !axis.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "rotate",
+                what: format!("angle {degrees} about {axis}"),
+            });
+        }
+        let Some(a) = axis.try_normalize() else {
+            return Err(CoreError::NonFinite {
+                call: "rotate",
+                what: format!("axis {axis} (zero length has no direction)"),
+            });
+        };
+        self.mult_matrix(Mat4::from_axis_angle(a, degrees.to_radians()))
+    }
+
+    /// Multiplies by a scale.
+    pub fn scale(&mut self, s: Vec3) -> Result<(), CoreError> {
+        if !s.is_finite() {
+            return Err(CoreError::NonFinite {
+                call: "scale",
+                what: format!("factors {s}"),
+            });
+        }
+        self.mult_matrix(Mat4::from_scale(s))
+    }
+
+    /// Pushes a copy of the current matrix.
+    pub fn push_matrix(&mut self) -> Result<(), CoreError> {
+        self.matrices.push()
+    }
+
+    /// Pops the current matrix.
+    pub fn pop_matrix(&mut self) -> Result<(), CoreError> {
+        self.matrices.pop()
+    }
+
+    // ----- instances -----------------------------------------------------
+
+    /// Places a defined object in the world with the current matrix.
+    pub fn instantiate(&mut self, object: ObjectId) -> Result<InstanceId, CoreError> {
+        self.no_definition("instantiate")?;
+        let slot = self.object_slot("instantiate", object)?;
+        if slot.geometry.is_none() && slot.pending.is_none() {
+            return Err(CoreError::UndefinedObject {
+                call: "instantiate",
+                id: object,
+            });
+        }
+        let transform = check_transform("instantiate", &self.matrices.top())?;
+        let fresh = InstanceSlot {
+            generation: 0,
+            alive: true,
+            object,
+            transform,
+        };
+        Ok(if let Some(i) = self.free_instances.pop() {
+            let s = &mut self.instances[i as usize];
+            let generation = s.generation;
+            *s = InstanceSlot { generation, ..fresh };
+            InstanceId { index: i, generation }
+        } else {
+            self.instances.push(fresh);
+            InstanceId {
+                index: (self.instances.len() - 1) as u32,
+                generation: 0,
+            }
+        })
+    }
+
+    fn instance_slot_mut(&mut self, call: &'static str, id: InstanceId) -> Result<&mut InstanceSlot, CoreError> {
+        match self.instances.get_mut(id.index as usize) {
+            Some(s) if s.alive && s.generation == id.generation => Ok(s),
+            _ => Err(CoreError::UnknownInstance { call, id }),
+        }
+    }
+
+    /// Sets an instance's object-to-world transform (affine motion).
+    pub fn set_instance_transform(&mut self, id: InstanceId, m: Mat4) -> Result<(), CoreError> {
+        let t = check_transform("set_instance_transform", &m)?;
+        self.instance_slot_mut("set_instance_transform", id)?.transform = t;
+        Ok(())
+    }
+
+    /// The object and transform of an instance.
+    pub fn instance(&self, id: InstanceId) -> Result<(ObjectId, Mat4), CoreError> {
+        match self.instances.get(id.index as usize) {
+            Some(s) if s.alive && s.generation == id.generation => Ok((s.object, Mat4::from(s.transform))),
+            _ => Err(CoreError::UnknownInstance { call: "instance", id }),
+        }
+    }
+
+    /// Removes an instance; its id becomes stale.
+    pub fn remove_instance(&mut self, id: InstanceId) -> Result<(), CoreError> {
+        let s = self.instance_slot_mut("remove_instance", id)?;
+        s.alive = false;
+        s.generation = s.generation.wrapping_add(1);
+        self.free_instances.push(id.index);
+        Ok(())
+    }
+
+    pub(crate) fn ensure_not_defining(&self, call: &'static str) -> Result<(), CoreError> {
+        self.no_definition(call)
+    }
+}

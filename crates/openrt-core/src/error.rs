@@ -1,0 +1,137 @@
+//! Errors of the API layer. Each names the call that was misused and the rule it broke.
+
+use thiserror::Error;
+
+use crate::{InstanceId, MaterialId, ObjectId, PrimitiveKind};
+
+/// A misuse of the API or bad input; the context is left unchanged by the failing call.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum CoreError {
+    /// A geometry call outside `begin_object`/`end_object`.
+    #[error("{call}: not inside an object definition (call begin_object first)")]
+    NotInObject {
+        /// The call.
+        call: &'static str,
+    },
+    /// A call that is not allowed inside an object definition.
+    #[error("{call}: not allowed inside the definition of {object} (call end_object first)")]
+    InsideObject {
+        /// The call.
+        call: &'static str,
+        /// The object being defined.
+        object: ObjectId,
+    },
+    /// `begin_object` while another definition is open.
+    #[error("begin_object({object}): object definitions cannot nest; {current} is still being defined")]
+    NestedObject {
+        /// The object asked for.
+        object: ObjectId,
+        /// The open definition.
+        current: ObjectId,
+    },
+    /// A vertex call outside `begin`/`end`.
+    #[error("{call}: not inside begin/end of a primitive")]
+    NotInPrimitive {
+        /// The call.
+        call: &'static str,
+    },
+    /// `begin` while a primitive is open, or `end_object` with one open.
+    #[error("{call}: primitive {current:?} is still open (call end first)")]
+    PrimitiveOpen {
+        /// The call.
+        call: &'static str,
+        /// The open primitive.
+        current: PrimitiveKind,
+    },
+    /// `end` with a vertex count that does not make whole primitives.
+    #[error("end: {kind:?} got {count} vertices; {rule}")]
+    IncompletePrimitive {
+        /// The primitive.
+        kind: PrimitiveKind,
+        /// Vertices given.
+        count: usize,
+        /// The counting rule.
+        rule: &'static str,
+    },
+    /// A stale or never-issued object id.
+    #[error("{call}({id}): unknown object (never generated here, or deleted)")]
+    UnknownObject {
+        /// The call.
+        call: &'static str,
+        /// The id.
+        id: ObjectId,
+    },
+    /// Instancing an object that has no definition yet.
+    #[error("{call}({id}): object has never been defined (begin_object/end_object first)")]
+    UndefinedObject {
+        /// The call.
+        call: &'static str,
+        /// The id.
+        id: ObjectId,
+    },
+    /// A stale or never-issued instance id.
+    #[error("{call}({id}): unknown instance (never created here, or removed)")]
+    UnknownInstance {
+        /// The call.
+        call: &'static str,
+        /// The id.
+        id: InstanceId,
+    },
+    /// A material id not in the table.
+    #[error("{call}({id:?}): unknown material")]
+    UnknownMaterial {
+        /// The call.
+        call: &'static str,
+        /// The id.
+        id: MaterialId,
+    },
+    /// `push_matrix` beyond the stack limit.
+    #[error("push_matrix: matrix stack overflow (at most {limit} entries)")]
+    StackOverflow {
+        /// The limit.
+        limit: usize,
+    },
+    /// `pop_matrix` with nothing pushed.
+    #[error("pop_matrix: matrix stack underflow (nothing was pushed)")]
+    StackUnderflow,
+    /// NaN or infinity in a vertex, normal, coordinate or matrix.
+    #[error("{call}: {what} is not finite (NaN or infinity)")]
+    NonFinite {
+        /// The call.
+        call: &'static str,
+        /// What was given.
+        what: String,
+    },
+    /// A transform that can not be inverted.
+    #[error("{call}: singular transform (determinant {det:e}); instance transforms must be invertible")]
+    SingularTransform {
+        /// The call.
+        call: &'static str,
+        /// Its determinant.
+        det: f32,
+    },
+    /// A projective matrix where an affine one is needed.
+    #[error("{call}: transform is not affine (last row {row:?}, expected [0, 0, 0, 1])")]
+    NotAffine {
+        /// The call.
+        call: &'static str,
+        /// The last row.
+        row: [f32; 4],
+    },
+    /// An instance whose object was deleted, found at commit.
+    #[error("commit: instance {instance} refers to deleted object {object}; remove the instance first")]
+    InstanceOfDeletedObject {
+        /// The instance.
+        instance: InstanceId,
+        /// The deleted object.
+        object: ObjectId,
+    },
+    /// The acceleration layer refused the input.
+    #[error("{call}: {source}")]
+    Accel {
+        /// The call.
+        call: &'static str,
+        /// The cause.
+        source: openrt_accel::AccelError,
+    },
+}

@@ -1,0 +1,49 @@
+//! Surface materials as in NFF/AFF.
+
+use glam::Vec3;
+
+/// A Phong/Whitted material: the NFF/AFF `fm` parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Ambient reflectance.
+    pub ambient: Vec3,
+    /// Diffuse reflectance.
+    pub diffuse: Vec3,
+    /// Specular reflectance (also the mirror reflection weight).
+    pub specular: Vec3,
+    /// Phong exponent.
+    pub shininess: f32,
+    /// Transmission weight (0 = opaque).
+    pub transmission: f32,
+    /// Index of refraction.
+    pub ior: f32,
+    /// Texture file name, resolved by the loader (multiplies the diffuse colour).
+    pub texture: Option<String>,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            ambient: Vec3::splat(0.1),
+            diffuse: Vec3::splat(0.8),
+            specular: Vec3::ZERO,
+            shininess: 0.0,
+            transmission: 0.0,
+            ior: 1.0,
+            texture: None,
+        }
+    }
+}
+
+impl Material {
+    /// `true` when every number is finite.
+    #[must_use]
+    pub fn is_finite(&self) -> bool {
+        self.ambient.is_finite()
+            && self.diffuse.is_finite()
+            && self.specular.is_finite()
+            && self.shininess.is_finite()
+            && self.transmission.is_finite()
+            && self.ior.is_finite()
+    }
+}

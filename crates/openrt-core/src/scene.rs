@@ -1,0 +1,202 @@
+//! A committed frame: instances, the top-level BSP and two-level traversal.
+
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3};
+use openrt_accel::{InstanceBsp, Ray, Triangle, traverse};
+
+use crate::instance::InstanceRecord;
+use crate::{InstanceId, Material, MaterialId, ObjectId};
+
+/// Entries of the per-ray mailbox (direct-mapped on the instance index).
+const MAILBOX: usize = 32;
+
+/// The closest hit in a scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneHit {
+    /// Ray parameter (same in world and object space).
+    pub t: f32,
+    /// Index into [`Scene::instances`].
+    pub instance: u32,
+    /// Triangle index in the instance's object.
+    pub prim: u32,
+    /// Barycentric weight of the second vertex.
+    pub b1: f32,
+    /// Barycentric weight of the third vertex.
+    pub b2: f32,
+}
+
+/// Everything shading needs about a hit point, in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Hit point.
+    pub point: Vec3,
+    /// Unit geometric normal, oriented by the triangle's winding as seen in
+    /// world space (mirroring transforms keep it consistent).
+    pub geometric_normal: Vec3,
+    /// Unit shading normal: interpolated vertex normals through the inverse
+    /// transpose, or the geometric normal when the triangle has none.
+    pub shading_normal: Vec3,
+    /// Interpolated texture coordinates.
+    pub uv: Vec2,
+    /// Material of the triangle.
+    pub material: MaterialId,
+    /// The instance hit.
+    pub instance: InstanceId,
+    /// Its object.
+    pub object: ObjectId,
+}
+
+/// A committed, immutable frame that any number of threads can trace.
+#[derive(Debug, Default)]
+pub struct Scene {
+    pub(crate) instances: Vec<InstanceRecord>,
+    pub(crate) bsp: InstanceBsp,
+    pub(crate) materials: Arc<Vec<Material>>,
+    pub(crate) frame: u64,
+}
+
+impl Scene {
+    /// The instances of this frame, in top-level index order.
+    #[must_use]
+    pub fn instances(&self) -> &[InstanceRecord] {
+        &self.instances
+    }
+
+    /// The top-level BSP.
+    #[must_use]
+    pub fn bsp(&self) -> &InstanceBsp {
+        &self.bsp
+    }
+
+    /// The material table.
+    #[must_use]
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// Frame number of the commit that made this scene (0 before any commit).
+    #[must_use]
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Triangles in the scene counted per instance.
+    #[must_use]
+    pub fn instanced_triangles(&self) -> usize {
+        self.instances.iter().map(|i| i.geometry.tree.triangles().len()).sum()
+    }
+
+    /// Closest hit in `(ray.t_min, ray.t_max)`.
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
+        let mut tests = 0;
+        self.intersect_counted(ray, &mut tests)
+    }
+
+    /// [`Scene::intersect`], also counting object-tree traversals (instance tests).
+    ///
+    /// Two-level traversal (Wald, Benthin & Slusallek 2003): the ray is
+    /// clipped to the scene box and walks the top-level BSP front to back; in
+    /// a leaf each instance not yet tested by this ray (mailbox) gets the ray
+    /// in its object space, clipped to the object's bounds, up to the closest
+    /// hit so far. Since an instance's hit may lie beyond the current cell,
+    /// the walk continues until the next cell starts beyond the closest hit.
+    pub fn intersect_counted(&self, ray: &Ray, tests: &mut u32) -> Option<SceneHit> {
+        let (t0, t1) = self.bsp.bounds().clip(ray)?;
+        let mut best = None;
+        let mut closest = ray.t_max;
+        let mut mailbox = [u32::MAX; MAILBOX];
+        traverse(self.bsp.nodes(), ray, t0, t1, &mut closest, |leaf, closest| {
+            for &i in self.bsp.leaf_items(leaf) {
+                let slot = &mut mailbox[i as usize % MAILBOX];
+                if *slot == i {
+                    continue;
+                }
+                *slot = i;
+                *tests += 1;
+                let inst = &self.instances[i as usize];
+                let local = inst.ray_to_object(ray, *closest);
+                if let Some(h) = inst.geometry.tree.intersect_within(&local, closest) {
+                    best = Some(SceneHit {
+                        t: h.t,
+                        instance: i,
+                        prim: h.prim,
+                        b1: h.b1,
+                        b2: h.b2,
+                    });
+                }
+            }
+            false
+        });
+        best
+    }
+
+    /// `true` when anything is hit in `(ray.t_min, ray.t_max)`.
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let Some((t0, t1)) = self.bsp.bounds().clip(ray) else {
+            return false;
+        };
+        let mut closest = ray.t_max;
+        let mut mailbox = [u32::MAX; MAILBOX];
+        traverse(self.bsp.nodes(), ray, t0, t1, &mut closest, |leaf, closest| {
+            for &i in self.bsp.leaf_items(leaf) {
+                let slot = &mut mailbox[i as usize % MAILBOX];
+                if *slot == i {
+                    continue;
+                }
+                *slot = i;
+                let inst = &self.instances[i as usize];
+                if inst.geometry.tree.occluded(&inst.ray_to_object(ray, *closest)) {
+                    return true;
+                }
+            }
+            false
+        })
+    }
+
+    /// World-space shading information for a hit of `ray`.
+    #[must_use]
+    pub fn surface(&self, ray: &Ray, hit: &SceneHit) -> Surface {
+        let inst = &self.instances[hit.instance as usize];
+        let p = hit.prim as usize;
+        let tri = &inst.geometry.tree.triangles()[p];
+        let sh = &inst.geometry.shading;
+        let b0 = 1.0 - hit.b1 - hit.b2;
+        let ng_obj = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        let geometric_normal = (inst.normal_matrix * ng_obj * inst.det_sign).normalize_or_zero();
+        let shading_normal = if sh.has_normals[p] {
+            let n = sh.normals[p];
+            let ns = (inst.normal_matrix * (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2)).normalize_or_zero();
+            if ns == Vec3::ZERO { geometric_normal } else { ns }
+        } else {
+            geometric_normal
+        };
+        let uv = sh.uvs[p];
+        Surface {
+            point: ray.at(hit.t),
+            geometric_normal,
+            shading_normal,
+            uv: uv[0] * b0 + uv[1] * hit.b1 + uv[2] * hit.b2,
+            material: sh.materials[p],
+            instance: inst.id,
+            object: inst.object,
+        }
+    }
+
+    /// Every instanced triangle moved to world space in f32, with its
+    /// `(instance index, prim)` origin: the input of the brute-force oracle.
+    #[must_use]
+    pub fn world_triangles(&self) -> (Vec<Triangle>, Vec<(u32, u32)>) {
+        let mut tris = Vec::new();
+        let mut origin = Vec::new();
+        for (i, inst) in self.instances.iter().enumerate() {
+            for (p, t) in inst.geometry.tree.triangles().iter().enumerate() {
+                tris.push(t.map(|v| inst.to_world.transform_point3(v)));
+                origin.push((i as u32, p as u32));
+            }
+        }
+        (tris, origin)
+    }
+}

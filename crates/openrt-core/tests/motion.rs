@@ -1,0 +1,105 @@
+//! Motion classes: which builder runs when, promotion, and mailboxing.
+
+use glam::{Mat4, Vec3};
+use openrt_accel::{BuilderKind, Ray, meshgen};
+use openrt_core::{Context, PrimitiveKind};
+
+fn define_sphere(ctx: &mut Context, id: openrt_core::ObjectId, n: usize, wobble: f32) {
+    ctx.begin_object(id).unwrap();
+    ctx.begin(PrimitiveKind::Triangles).unwrap();
+    for t in meshgen::bumpy_sphere(n, 1, 0.2) {
+        for v in t {
+            ctx.vertex(v * (1.0 + wobble)).unwrap();
+        }
+    }
+    ctx.end().unwrap();
+    ctx.end_object().unwrap();
+}
+
+#[test]
+fn each_object_pays_only_for_what_changed_and_settled_objects_are_promoted() {
+    let mut ctx = Context::new();
+    ctx.set_promote_after(Some(3));
+    let still = ctx.gen_object();
+    let moving = ctx.gen_object();
+    let morphing = ctx.gen_object();
+    for id in [still, moving, morphing] {
+        define_sphere(&mut ctx, id, 2000, 0.0);
+    }
+    let _ = ctx.instantiate(still).unwrap();
+    let m = ctx.instantiate(moving).unwrap();
+    let _ = ctx.instantiate(morphing).unwrap();
+    let s = ctx.commit().unwrap();
+    assert_eq!(s.build_count(BuilderKind::Sah), 3);
+    for f in 1..4 {
+        ctx.set_instance_transform(m, Mat4::from_translation(Vec3::X * f as f32))
+            .unwrap();
+        define_sphere(&mut ctx, morphing, 2000, 0.01 * f as f32);
+        let s = ctx.commit().unwrap();
+        assert_eq!(s.builds.len(), 1, "only the redefined object is rebuilt");
+        assert_eq!((s.builds[0].object, s.builds[0].builder), (morphing, BuilderKind::Fast));
+        assert!(s.toplevel_ms >= 0.0 && s.toplevel_nodes >= 1);
+    }
+    assert_eq!(ctx.object_builder(morphing).unwrap(), Some(BuilderKind::Fast));
+    assert_eq!(ctx.object_builder(moving).unwrap(), Some(BuilderKind::Sah));
+    // Unchanged for 3 commits: promotion starts on the third.
+    let mut started = false;
+    for _ in 0..3 {
+        let s = ctx.commit().unwrap();
+        assert!(s.builds.is_empty());
+        started |= s.promotions_started.contains(&morphing);
+    }
+    assert!(started);
+    let before = ctx.scene();
+    ctx.wait_for_promotions();
+    let s = ctx.commit().unwrap();
+    assert_eq!(s.promotions_swapped, vec![morphing]);
+    assert_eq!(ctx.object_builder(morphing).unwrap(), Some(BuilderKind::Sah));
+    // Same geometry, same answers.
+    let after = ctx.scene();
+    for ray in meshgen::camera_rays(Vec3::new(0.0, 0.0, -6.0), Vec3::ZERO, 32, 32, 40.0) {
+        let (a, b) = (before.intersect(&ray), after.intersect(&ray));
+        assert_eq!(a.map(|h| (h.instance, h.prim)), b.map(|h| (h.instance, h.prim)));
+    }
+    // A redefinition during a promotion discards it.
+    define_sphere(&mut ctx, morphing, 2000, 0.5);
+    ctx.commit().unwrap();
+    assert_eq!(ctx.object_builder(morphing).unwrap(), Some(BuilderKind::Fast));
+}
+
+#[test]
+fn an_instance_spanning_many_cells_is_intersected_once_per_ray() {
+    let mut ctx = Context::new();
+    let floor = ctx.gen_object();
+    ctx.begin_object(floor).unwrap();
+    ctx.begin(PrimitiveKind::Quads).unwrap();
+    for (x, z) in [(-50.0, -50.0), (50.0, -50.0), (50.0, 50.0), (-50.0, 50.0)] {
+        ctx.vertex(Vec3::new(x, 0.0, z)).unwrap();
+    }
+    ctx.end().unwrap();
+    ctx.end_object().unwrap();
+    let ball = ctx.gen_object();
+    define_sphere(&mut ctx, ball, 200, 0.0);
+    ctx.instantiate(floor).unwrap();
+    for i in 0..20 {
+        ctx.load_matrix(Mat4::from_translation(Vec3::new(
+            -45.0 + 4.5 * i as f32,
+            2.0,
+            (i % 5) as f32 * 7.0 - 14.0,
+        )))
+        .unwrap();
+        ctx.instantiate(ball).unwrap();
+    }
+    ctx.commit().unwrap();
+    let scene = ctx.scene();
+    assert!(scene.bsp().nodes().len() > 10, "the floor spans many cells");
+    // A grazing ray above the floor crosses every cell the floor is in.
+    let ray = Ray::infinite(Vec3::new(-60.0, 0.5, 0.3), Vec3::new(1.0, -0.0001, 0.0));
+    let mut tests = 0;
+    let _ = scene.intersect_counted(&ray, &mut tests);
+    assert!(
+        tests <= 21,
+        "{tests} instance tests for 21 instances: the mailbox must stop repeats"
+    );
+    assert!(tests >= 1);
+}
