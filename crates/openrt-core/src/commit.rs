@@ -210,12 +210,19 @@ impl Context {
         } else {
             Arc::clone(&self.scene.materials)
         };
+        let textures = if self.textures_dirty {
+            self.textures_dirty = false;
+            Arc::new(self.textures.clone())
+        } else {
+            Arc::clone(&self.scene.textures)
+        };
         self.frame += 1;
         stats.frame = self.frame;
         self.scene = Arc::new(Scene {
             instances: records,
             bsp,
             materials,
+            textures,
             frame: self.frame,
         });
         stats.total_ms = start.elapsed().as_secs_f64() * 1e3;

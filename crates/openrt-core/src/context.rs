@@ -8,7 +8,7 @@ use openrt_accel::{KdTree, Triangle, is_valid_triangle};
 use crate::instance::check_transform;
 use crate::matrix_stack::MatrixStack;
 use crate::object::{ObjectGeometry, ObjectMesh};
-use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind, Scene};
+use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind, Scene, Texture, TextureId};
 
 /// A background SAH build of an object that stopped changing.
 pub(crate) enum Promotion {
@@ -85,6 +85,8 @@ pub struct Context {
     def: Option<Definition>,
     pub(crate) materials: Vec<Material>,
     pub(crate) materials_dirty: bool,
+    pub(crate) textures: Vec<Arc<Texture>>,
+    pub(crate) textures_dirty: bool,
     current_material: MaterialId,
     pub(crate) frame: u64,
     pub(crate) scene: Arc<Scene>,
@@ -110,6 +112,8 @@ impl Context {
             def: None,
             materials: vec![Material::default()],
             materials_dirty: true,
+            textures: Vec::new(),
+            textures_dirty: true,
             current_material: MaterialId::DEFAULT,
             frame: 0,
             scene: Arc::new(Scene::default()),
@@ -348,12 +352,27 @@ impl Context {
 
     // ----- materials -----------------------------------------------------
 
+    /// Adds a texture to the table.
+    pub fn create_texture(&mut self, t: Texture) -> TextureId {
+        self.textures.push(Arc::new(t));
+        self.textures_dirty = true;
+        TextureId((self.textures.len() - 1) as u32)
+    }
+
     /// Adds a material to the table.
     pub fn create_material(&mut self, m: Material) -> Result<MaterialId, CoreError> {
         if !m.is_finite() {
             return Err(CoreError::NonFinite {
                 call: "create_material",
                 what: format!("material {m:?}"),
+            });
+        }
+        if let Some(t) = m.texture
+            && t.0 as usize >= self.textures.len()
+        {
+            return Err(CoreError::UnknownTexture {
+                call: "create_material",
+                id: t,
             });
         }
         self.materials.push(m);

@@ -2,7 +2,7 @@
 
 use thiserror::Error;
 
-use crate::{InstanceId, MaterialId, ObjectId, PrimitiveKind};
+use crate::{InstanceId, MaterialId, ObjectId, PrimitiveKind, TextureId};
 
 /// A misuse of the API or bad input; the context is left unchanged by the failing call.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -84,6 +84,14 @@ pub enum CoreError {
         call: &'static str,
         /// The id.
         id: MaterialId,
+    },
+    /// A texture id not in the table.
+    #[error("{call}({id:?}): unknown texture")]
+    UnknownTexture {
+        /// The call.
+        call: &'static str,
+        /// The id.
+        id: TextureId,
     },
     /// `push_matrix` beyond the stack limit.
     #[error("push_matrix: matrix stack overflow (at most {limit} entries)")]

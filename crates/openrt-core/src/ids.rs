@@ -62,3 +62,15 @@ impl MaterialId {
         self.0
     }
 }
+
+/// A texture in the context's texture table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct TextureId(pub(crate) u32);
+
+impl TextureId {
+    /// Index in the texture table.
+    #[must_use]
+    pub fn index(self) -> u32 {
+        self.0
+    }
+}

@@ -70,24 +70,34 @@
 //! # Ok::<(), openrt_core::CoreError>(())
 //! ```
 
+mod camera;
 mod commit;
 mod context;
 mod error;
 mod ids;
 mod instance;
+mod light;
 mod material;
 mod matrix_stack;
 mod object;
 mod primitive;
+mod render;
 mod scene;
+mod shade;
+mod texture;
 
+pub use camera::{Camera, CameraRays};
 pub use commit::{BuildRecord, CommitStats};
 pub use context::Context;
 pub use error::CoreError;
-pub use ids::{InstanceId, MaterialId, ObjectId};
+pub use ids::{InstanceId, MaterialId, ObjectId, TextureId};
 pub use instance::InstanceRecord;
+pub use light::{Environment, PointLight};
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{ObjectGeometry, ObjectMesh, ShadingData};
 pub use primitive::PrimitiveKind;
+pub use render::{FrameStats, Image, RenderSettings, Renderer, TILE};
 pub use scene::{Scene, SceneHit, Surface};
+pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, offset_ray_origin};
+pub use texture::Texture;

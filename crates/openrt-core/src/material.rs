@@ -2,6 +2,8 @@
 
 use glam::Vec3;
 
+use crate::TextureId;
+
 /// A Phong/Whitted material: the NFF/AFF `fm` parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
@@ -17,8 +19,11 @@ pub struct Material {
     pub transmission: f32,
     /// Index of refraction.
     pub ior: f32,
-    /// Texture file name, resolved by the loader (multiplies the diffuse colour).
-    pub texture: Option<String>,
+    /// Texture multiplying the ambient and diffuse colours.
+    pub texture: Option<TextureId>,
+    /// One-sided surface (NFF polygons): rays reaching its back side pass
+    /// through it. Shadow rays treat every surface as opaque.
+    pub one_sided: bool,
 }
 
 impl Default for Material {
@@ -31,6 +36,7 @@ impl Default for Material {
             transmission: 0.0,
             ior: 1.0,
             texture: None,
+            one_sided: false,
         }
     }
 }

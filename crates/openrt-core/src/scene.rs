@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3};
 use openrt_accel::{InstanceBsp, Ray, Triangle, traverse};
 
 use crate::instance::InstanceRecord;
-use crate::{InstanceId, Material, MaterialId, ObjectId};
+use crate::{InstanceId, Material, MaterialId, ObjectId, Texture};
 
 /// Entries of the per-ray mailbox (direct-mapped on the instance index).
 const MAILBOX: usize = 32;
@@ -39,6 +39,9 @@ pub struct Surface {
     pub shading_normal: Vec3,
     /// Interpolated texture coordinates.
     pub uv: Vec2,
+    /// Largest |coordinate| of the hit triangle's world vertices: the
+    /// magnitude that bounds the rounding error of `point` (for ray offsets).
+    pub error_scale: f32,
     /// Material of the triangle.
     pub material: MaterialId,
     /// The instance hit.
@@ -53,6 +56,7 @@ pub struct Scene {
     pub(crate) instances: Vec<InstanceRecord>,
     pub(crate) bsp: InstanceBsp,
     pub(crate) materials: Arc<Vec<Material>>,
+    pub(crate) textures: Arc<Vec<Arc<Texture>>>,
     pub(crate) frame: u64,
 }
 
@@ -73,6 +77,12 @@ impl Scene {
     #[must_use]
     pub fn materials(&self) -> &[Material] {
         &self.materials
+    }
+
+    /// The texture table.
+    #[must_use]
+    pub fn textures(&self) -> &[Arc<Texture>] {
+        &self.textures
     }
 
     /// Frame number of the commit that made this scene (0 before any commit).
@@ -174,8 +184,16 @@ impl Scene {
             geometric_normal
         };
         let uv = sh.uvs[p];
+        // NOTE: the hit point is interpolated from the world-space vertices
+        // (Wächter & Binder, Ray Tracing Gems ch. 6): its error is a few ulps
+        // of its magnitude, unlike origin + t * dir.
+        let w = tri.map(|v| inst.to_world.transform_point3(v));
+        let point = w[0] * b0 + w[1] * hit.b1 + w[2] * hit.b2;
+        let point = if point.is_finite() { point } else { ray.at(hit.t) };
+        let error_scale = w.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
         Surface {
-            point: ray.at(hit.t),
+            point,
+            error_scale,
             geometric_normal,
             shading_normal,
             uv: uv[0] * b0 + uv[1] * hit.b1 + uv[2] * hit.b2,

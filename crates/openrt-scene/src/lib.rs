@@ -1,0 +1,27 @@
+//! # openrt-scene
+//!
+//! Scene formats for OpenRT-rs, all driving the `openrt-core` API:
+//! - a versioned RON format ([`load_ron`], reference in `docs/SCENE-FORMAT.md`);
+//! - texture files (PPM and PNG) through the `image` crate;
+//! - the built-in default scene ([`default_scene`]).
+//!
+//! ```
+//! let scene = openrt_scene::default_scene().unwrap();
+//! assert!(scene.ctx.scene().instances().len() > 3);
+//! ```
+
+mod builtin;
+mod error;
+mod loader;
+mod ron_format;
+mod shapes;
+mod texture_io;
+
+pub use builtin::{DEFAULT_SCENE_RON, default_scene};
+pub use error::SceneError;
+pub use loader::{LoadedScene, load_ron, load_ron_str};
+pub use ron_format::{
+    CameraDesc, InstanceDesc, LightDesc, MaterialDesc, ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp,
+};
+pub use shapes::{emit_box, emit_sphere};
+pub use texture_io::load_texture;

@@ -1,0 +1,221 @@
+//! The RON scene format (version 1: static scenes).
+//!
+//! See `docs/SCENE-FORMAT.md` for the reference and an example. Every field
+//! except `version`, `objects` and `instances` has a default.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+
+/// Versions of the format this build reads.
+pub const SUPPORTED_VERSIONS: &str = "1";
+
+/// A scene file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Format version (1).
+    pub version: u32,
+    /// The camera.
+    #[serde(default)]
+    pub camera: CameraDesc,
+    /// Image size the scene is meant for.
+    #[serde(default = "default_resolution")]
+    pub resolution: (u32, u32),
+    /// Background colour.
+    #[serde(default)]
+    pub background: [f32; 3],
+    /// Ambient light.
+    #[serde(default = "default_ambient")]
+    pub ambient: [f32; 3],
+    /// Point lights.
+    #[serde(default)]
+    pub lights: Vec<LightDesc>,
+    /// Texture files by name, relative to the scene file.
+    #[serde(default)]
+    pub textures: BTreeMap<String, String>,
+    /// Materials by name.
+    #[serde(default)]
+    pub materials: BTreeMap<String, MaterialDesc>,
+    /// Objects by name.
+    pub objects: BTreeMap<String, ObjectDesc>,
+    /// Instances of the objects.
+    pub instances: Vec<InstanceDesc>,
+}
+
+fn default_resolution() -> (u32, u32) {
+    (640, 480)
+}
+
+fn default_ambient() -> [f32; 3] {
+    [0.1; 3]
+}
+
+/// Pinhole camera.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraDesc {
+    /// Eye.
+    pub from: [f32; 3],
+    /// Look-at point.
+    pub at: [f32; 3],
+    /// Up vector.
+    pub up: [f32; 3],
+    /// Vertical field of view in degrees.
+    pub fov: f32,
+    /// Near distance.
+    pub near: f32,
+}
+
+impl Default for CameraDesc {
+    fn default() -> Self {
+        Self {
+            from: [0.0, 0.0, 5.0],
+            at: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov: 45.0,
+            near: 0.0,
+        }
+    }
+}
+
+/// A point light.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightDesc {
+    /// Position.
+    pub position: [f32; 3],
+    /// Colour.
+    #[serde(default = "white")]
+    pub color: [f32; 3],
+}
+
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+
+/// A material (NFF/AFF `fm` parameters).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MaterialDesc {
+    /// Ambient colour.
+    pub ambient: [f32; 3],
+    /// Diffuse colour.
+    pub diffuse: [f32; 3],
+    /// Specular (and mirror) colour.
+    pub specular: [f32; 3],
+    /// Phong exponent.
+    pub shininess: f32,
+    /// Transmission.
+    pub transmission: f32,
+    /// Index of refraction.
+    pub ior: f32,
+    /// Name of a texture in `textures`.
+    pub texture: Option<String>,
+    /// One-sided surface.
+    pub one_sided: bool,
+}
+
+impl Default for MaterialDesc {
+    fn default() -> Self {
+        Self {
+            ambient: [0.1; 3],
+            diffuse: [0.8; 3],
+            specular: [0.0; 3],
+            shininess: 0.0,
+            transmission: 0.0,
+            ior: 1.0,
+            texture: None,
+            one_sided: false,
+        }
+    }
+}
+
+/// Geometry of an object.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ObjectDesc {
+    /// An indexed triangle mesh.
+    Mesh {
+        /// Vertex positions.
+        vertices: Vec<[f32; 3]>,
+        /// Vertex index triples.
+        triangles: Vec<[u32; 3]>,
+        /// Optional vertex normals (one per vertex).
+        #[serde(default)]
+        normals: Option<Vec<[f32; 3]>>,
+        /// Optional texture coordinates (one per vertex).
+        #[serde(default)]
+        uvs: Option<Vec<[f32; 2]>>,
+        /// Material name.
+        #[serde(default)]
+        material: Option<String>,
+    },
+    /// An axis-aligned box.
+    Box {
+        /// Lower corner.
+        min: [f32; 3],
+        /// Upper corner.
+        max: [f32; 3],
+        /// Material name.
+        #[serde(default)]
+        material: Option<String>,
+    },
+    /// A tessellated sphere with smooth normals.
+    Sphere {
+        /// Centre.
+        center: [f32; 3],
+        /// Radius.
+        radius: f32,
+        /// Stacks (slices are twice as many).
+        #[serde(default = "default_segments")]
+        segments: u32,
+        /// Material name.
+        #[serde(default)]
+        material: Option<String>,
+    },
+    /// A planar quad, texture coordinates (0,0), (1,0), (1,1), (0,1) times `uv_scale`.
+    Quad {
+        /// The four corners in order.
+        corners: Vec<[f32; 3]>,
+        /// Texture repeat count.
+        #[serde(default = "one")]
+        uv_scale: f32,
+        /// Material name.
+        #[serde(default)]
+        material: Option<String>,
+    },
+}
+
+fn default_segments() -> u32 {
+    16
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+/// One step of an instance transform, applied in order (OpenGL style:
+/// later steps act first on the object).
+#[derive(Debug, Clone, Deserialize)]
+pub enum TransformOp {
+    /// Translation.
+    Translate([f32; 3]),
+    /// Rotation about an axis, in degrees.
+    Rotate([f32; 3], f32),
+    /// Scale per axis.
+    Scale([f32; 3]),
+    /// A column-major 4x4 matrix.
+    Matrix([f32; 16]),
+}
+
+/// An instance of a named object.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InstanceDesc {
+    /// Object name.
+    pub object: String,
+    /// Transform steps (empty: identity).
+    #[serde(default)]
+    pub transform: Vec<TransformOp>,
+}

@@ -1,0 +1,190 @@
+//! Shipped scenes against golden images, and malformed input.
+//!
+//! Goldens live in `tests/golden/` at the repository root; regenerate them
+//! with `OPENRT_BLESS=1 cargo test -p openrt-scene --test scenes` after an
+//! intended change, and look at them before committing.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use openrt_core::{Image, RenderMode, RenderSettings, Renderer};
+use openrt_scene::{SceneError, load_ron, load_ron_str};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn render(scene: &Path, mode: RenderMode) -> Image {
+    let s = load_ron(scene).unwrap_or_else(|e| panic!("{e}"));
+    let settings = RenderSettings {
+        width: 160,
+        height: 120,
+        mode,
+        max_depth: 3,
+    };
+    Renderer::new(2)
+        .render(&s.ctx.scene(), &Arc::new(s.env), &s.camera, &settings)
+        .unwrap()
+        .0
+}
+
+/// Compares with the golden PNG: RMSE below 1/255 and at most 0.5% of
+/// pixels off by more than 8/255 in some channel.
+fn check_golden(name: &str, img: &Image) {
+    let path = repo().join("tests/golden").join(format!("{name}.png"));
+    if std::env::var_os("OPENRT_BLESS").is_some() {
+        image::save_buffer(&path, &img.to_rgb8(), img.width, img.height, image::ColorType::Rgb8).unwrap();
+        return;
+    }
+    compare_golden(name, img);
+}
+
+fn compare_golden(name: &str, img: &Image) {
+    let path = repo().join("tests/golden").join(format!("{name}.png"));
+    let bytes = img.to_rgb8();
+    let golden = image::open(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (bless with OPENRT_BLESS=1)", path.display()))
+        .to_rgb8();
+    assert_eq!(golden.dimensions(), (img.width, img.height), "{name}: size");
+    let (mut se, mut off) = (0.0f64, 0usize);
+    for (a, b) in golden.as_raw().chunks(3).zip(bytes.chunks(3)) {
+        let d: Vec<i32> = a.iter().zip(b).map(|(&x, &y)| i32::from(x) - i32::from(y)).collect();
+        se += d.iter().map(|&v| f64::from(v * v)).sum::<f64>() / 3.0;
+        off += usize::from(d.iter().any(|v| v.abs() > 8));
+    }
+    let n = f64::from(img.width * img.height);
+    let rmse = (se / n).sqrt();
+    assert!(
+        rmse < 1.0 && (off as f64) < 0.005 * n,
+        "{name}: RMSE {rmse:.3}/255, {off} pixels off"
+    );
+}
+
+#[test]
+fn shipped_scenes_match_their_golden_images() {
+    for scene in ["room", "slab", "textured"] {
+        for (mode, tag) in [(RenderMode::GlLike, "gl"), (RenderMode::Whitted, "whitted")] {
+            let img = render(&repo().join(format!("scenes/{scene}.ron")), mode);
+            check_golden(&format!("{scene}-{tag}"), &img);
+        }
+    }
+}
+
+#[test]
+fn the_golden_check_catches_a_changed_image() {
+    let mut img = render(&repo().join("scenes/room.ron"), RenderMode::GlLike);
+    for p in img.pixels.iter_mut().take(2000) {
+        *p = glam::Vec3::ONE - *p;
+    }
+    let r = std::panic::catch_unwind(|| compare_golden("room-gl", &img));
+    assert!(r.is_err());
+}
+
+#[test]
+fn the_built_in_scene_is_the_shipped_room() {
+    let text = std::fs::read_to_string(repo().join("scenes/room.ron")).unwrap();
+    assert_eq!(text, openrt_scene::DEFAULT_SCENE_RON);
+    let s = openrt_scene::default_scene().unwrap();
+    assert_eq!(s.ctx.scene().instances().len(), 8);
+}
+
+fn err(text: &str) -> SceneError {
+    match load_ron_str(text, Path::new("bad.ron")) {
+        Ok(_) => panic!("accepted:\n{text}"),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn a_missing_texture_names_the_file() {
+    let text = r#"(version: 1, textures: {"t": "no/such/wood.ppm"}, materials: {"m": (texture: Some("t"))},
+                  objects: {}, instances: [])"#;
+    let e = err(text);
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::Texture { .. }), "{msg}");
+    assert!(msg.contains("no/such/wood.ppm") && msg.contains("bad.ron"), "{msg}");
+}
+
+#[test]
+fn a_corrupt_texture_is_an_error_not_a_panic() {
+    let dir = std::env::temp_dir().join(format!("openrt-scene-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.ppm"), b"P6\n64 64\n255\n\x01\x02").unwrap();
+    let scene = dir.join("s.ron");
+    std::fs::write(
+        &scene,
+        r#"(version: 1, textures: {"t": "bad.ppm"}, objects: {}, instances: [])"#,
+    )
+    .unwrap();
+    let e = load_ron(&scene).err().expect("truncated PPM");
+    assert!(e.to_string().contains("bad.ppm"), "{e}");
+}
+
+#[test]
+fn malformed_scenes_give_file_line_and_column() {
+    let e = err("(version: 1,\n  objects: {},\n  instances: [ (object: ] )");
+    match &e {
+        SceneError::Parse { line, col, .. } => assert_eq!((*line, *col > 0), (3, true), "{e}"),
+        other => panic!("{other}"),
+    }
+    assert!(e.to_string().starts_with("bad.ron:3:"), "{e}");
+    // Unknown field: a typo is reported, not ignored.
+    assert!(matches!(
+        err("(version: 1, objcts: {}, instances: [])"),
+        SceneError::Parse { .. }
+    ));
+    assert!(matches!(
+        err("(version: 7, objects: {}, instances: [])"),
+        SceneError::Version { found: 7, .. }
+    ));
+    assert!(matches!(
+        err("(version: 1, objects: {}, instances: [(object: \"ghost\")])"),
+        SceneError::Undefined { what: "object", .. }
+    ));
+    assert!(matches!(
+        err("(version: 1, objects: {\"a\": Box(min: (0,0,0), max: (1,1,1), material: Some(\"nope\"))}, instances: [])"),
+        SceneError::Undefined { what: "material", .. }
+    ));
+    // Bad index, NaN vertex, wrong counts.
+    assert!(matches!(
+        err(
+            "(version: 1, objects: {\"m\": Mesh(vertices: [(0,0,0), (1,0,0), (0,1,0)], triangles: [(0, 1, 3)])}, instances: [])"
+        ),
+        SceneError::Invalid { .. }
+    ));
+    assert!(matches!(
+        err(
+            "(version: 1, objects: {\"m\": Mesh(vertices: [(0,0,0), (1,0,0), (NaN,1,0)], triangles: [(0, 1, 2)])}, instances: [])"
+        ),
+        SceneError::Core {
+            source: openrt_core::CoreError::NonFinite { call: "vertex", .. },
+            ..
+        }
+    ));
+    assert!(matches!(
+        err(
+            "(version: 1, objects: {\"m\": Mesh(vertices: [(0,0,0), (1,0,0), (0,1,0)], triangles: [(0, 1, 2)], normals: Some([(0,0,1)]))}, instances: [])"
+        ),
+        SceneError::Invalid { .. }
+    ));
+    assert!(matches!(
+        err("(version: 1, objects: {\"q\": Quad(corners: [(0,0,0), (1,0,0), (1,1,0)])}, instances: [])"),
+        SceneError::Invalid { .. }
+    ));
+    assert!(matches!(
+        err(
+            "(version: 1, objects: {\"b\": Box(min: (0,0,0), max: (1,1,1))}, instances: [(object: \"b\", transform: [Scale((1, 0, 1))])])"
+        ),
+        SceneError::Core {
+            source: openrt_core::CoreError::SingularTransform { .. },
+            ..
+        }
+    ));
+    assert!(matches!(
+        err("(version: 1, camera: (from: (0,0,0), at: (0,0,0)), objects: {}, instances: [])"),
+        SceneError::Invalid { .. }
+    ));
+    // A missing scene file names the file.
+    let e = load_ron(Path::new("/no/such/scene.ron")).err().unwrap();
+    assert!(e.to_string().contains("/no/such/scene.ron"));
+}
