@@ -338,6 +338,19 @@ impl Context {
         Ok(())
     }
 
+    /// Clears the current normal: following vertices have none, and their
+    /// triangles are shaded with the geometric normal.
+    pub fn clear_normal(&mut self) -> Result<(), CoreError> {
+        self.def_mut("clear_normal")?.normal = None;
+        Ok(())
+    }
+
+    /// Clears the current texture coordinate (following vertices get (0, 0)).
+    pub fn clear_tex_coord(&mut self) -> Result<(), CoreError> {
+        self.def_mut("clear_tex_coord")?.uv = None;
+        Ok(())
+    }
+
     /// Sets the current texture coordinate.
     pub fn tex_coord(&mut self, uv: Vec2) -> Result<(), CoreError> {
         if !uv.is_finite() {

@@ -2,6 +2,7 @@
 //!
 //! Scene formats for OpenRT-rs, all driving the `openrt-core` API:
 //! - a versioned RON format ([`load_ron`], reference in `docs/SCENE-FORMAT.md`);
+//! - BART's AFF format ([`aff`]): reader, keyframe animation, player;
 //! - texture files (PPM and PNG) through the `image` crate;
 //! - the built-in default scene ([`default_scene`]).
 //!
@@ -10,6 +11,7 @@
 //! assert!(scene.ctx.scene().instances().len() > 3);
 //! ```
 
+pub mod aff;
 mod builtin;
 mod error;
 mod loader;

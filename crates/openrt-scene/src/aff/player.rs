@@ -1,0 +1,280 @@
+//! Plays an AFF scene through the OpenRT-style API.
+//!
+//! Structure onto motion classes (Wald, Benthin & Slusallek 2003):
+//! - geometry outside every `x` node is merged into one static object (few
+//!   large objects, not many small ones);
+//! - each `x` node's own geometry becomes an object instanced with the
+//!   node's world transform, updated every frame (affine motion); nodes with
+//!   identical geometry share one object;
+//! - all `tpa` triangles form one object redefined every frame
+//!   (unstructured motion).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::Vec3;
+use openrt_core::{
+    Camera, CommitStats, Context, Environment, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind,
+    RenderSettings,
+};
+
+use super::model::{AffMesh, AffScene};
+use super::parser::parse_aff;
+use crate::{SceneError, load_texture};
+
+/// The folder of the BART scenes: `$OPENRT_BART_DIR`, else `../shared/bart`.
+#[must_use]
+pub fn bart_dir() -> PathBuf {
+    std::env::var_os("OPENRT_BART_DIR").map_or_else(|| PathBuf::from("../shared/bart"), PathBuf::from)
+}
+
+/// An AFF scene loaded into a context, ready to step through its frames.
+pub struct AffPlayer {
+    /// The parsed file.
+    pub scene: AffScene,
+    /// The context the scene lives in.
+    pub ctx: Context,
+    /// Lights, ambient light and background.
+    pub env: Arc<Environment>,
+    materials: Vec<MaterialId>,
+    node_instances: Vec<Option<InstanceId>>,
+    animated_object: Option<ObjectId>,
+}
+
+impl AffPlayer {
+    /// Parses `path` and defines its objects (nothing is committed yet).
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let scene = parse_aff(path)?;
+        Self::new(scene)
+    }
+
+    /// Defines the objects of a parsed scene.
+    pub fn new(scene: AffScene) -> Result<Self, SceneError> {
+        let path = scene.path.clone();
+        let core = |source| SceneError::Core {
+            path: path.clone(),
+            source,
+        };
+        let mut ctx = Context::new();
+        let mut textures = Vec::with_capacity(scene.textures.len());
+        for t in &scene.textures {
+            textures.push(ctx.create_texture(load_texture(t, &path)?));
+        }
+        let mut materials = Vec::with_capacity(scene.materials.len());
+        for m in &scene.materials {
+            materials.push(
+                ctx.create_material(Material {
+                    ambient: m.ambient,
+                    diffuse: m.diffuse,
+                    specular: m.specular,
+                    shininess: m.shininess,
+                    transmission: m.transmission,
+                    ior: m.ior,
+                    texture: m.texture.map(|i| textures[i]),
+                    one_sided: false,
+                })
+                .map_err(core)?,
+            );
+        }
+        // Static geometry: one object.
+        if !scene.static_mesh.is_empty() {
+            let id = ctx.gen_object();
+            define(&mut ctx, id, &scene.static_mesh, &materials).map_err(core)?;
+            ctx.instantiate(id).map_err(core)?;
+        }
+        // Animated nodes: an object per distinct geometry.
+        let mut shared: HashMap<Vec<u32>, ObjectId> = HashMap::new();
+        let mut node_instances = Vec::with_capacity(scene.nodes.len());
+        for (i, node) in scene.nodes.iter().enumerate() {
+            if node.mesh.is_empty() {
+                node_instances.push(None);
+                continue;
+            }
+            let key = mesh_key(&node.mesh);
+            let id = if let Some(&id) = shared.get(&key) {
+                id
+            } else {
+                let id = ctx.gen_object();
+                define(&mut ctx, id, &node.mesh, &materials).map_err(core)?;
+                shared.insert(key, id);
+                id
+            };
+            ctx.load_matrix(scene.node_transform(i, scene.animation.map_or(0.0, |a| a.start)))
+                .map_err(core)?;
+            node_instances.push(Some(ctx.instantiate(id).map_err(core)?));
+        }
+        ctx.load_identity();
+        let animated_object = if scene.animated.is_empty() {
+            None
+        } else {
+            let id = ctx.gen_object();
+            define_animated(
+                &mut ctx,
+                id,
+                &scene,
+                &materials,
+                scene.animation.map_or(0.0, |a| a.start),
+            )
+            .map_err(core)?;
+            ctx.instantiate(id).map_err(core)?;
+            Some(id)
+        };
+        let env = Arc::new(Environment {
+            lights: scene.lights.clone(),
+            ambient: scene.ambient,
+            background: scene.background,
+        });
+        Ok(Self {
+            scene,
+            ctx,
+            env,
+            materials,
+            node_instances,
+            animated_object,
+        })
+    }
+
+    /// Number of frames (1 for a scene without `a`).
+    #[must_use]
+    pub fn frames(&self) -> u32 {
+        self.scene.animation.map_or(1, |a| a.frames)
+    }
+
+    /// Scene time of a frame.
+    #[must_use]
+    pub fn time_of(&self, frame: u32) -> f32 {
+        self.scene.animation.map_or(0.0, |a| a.time(frame))
+    }
+
+    /// Moves everything to `time` and commits: node transforms change,
+    /// the animated triangles are redefined, nothing else is rebuilt.
+    pub fn set_time(&mut self, time: f32) -> Result<CommitStats, SceneError> {
+        let path = self.scene.path.clone();
+        let core = |source| SceneError::Core {
+            path: path.clone(),
+            source,
+        };
+        for (i, inst) in self.node_instances.iter().enumerate() {
+            if let Some(inst) = inst {
+                self.ctx
+                    .set_instance_transform(*inst, self.scene.node_transform(i, time))
+                    .map_err(core)?;
+            }
+        }
+        if let Some(id) = self.animated_object {
+            define_animated(&mut self.ctx, id, &self.scene, &self.materials, time).map_err(core)?;
+        }
+        self.ctx.commit().map_err(core)
+    }
+
+    /// The camera at `time`.
+    #[must_use]
+    pub fn camera(&self, time: f32) -> Camera {
+        self.scene.camera_at(time)
+    }
+
+    /// The file's resolution with default mode and depth.
+    #[must_use]
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
+            width: self.scene.resolution.0,
+            height: self.scene.resolution.1,
+            ..RenderSettings::default()
+        }
+    }
+}
+
+/// Bit pattern of a mesh, to share objects between nodes with equal geometry.
+fn mesh_key(m: &AffMesh) -> Vec<u32> {
+    let mut k = Vec::with_capacity(m.len() * 10);
+    for (i, t) in m.triangles.iter().enumerate() {
+        k.extend(t.iter().flat_map(|v| v.to_array().map(f32::to_bits)));
+        k.push(m.materials[i] as u32);
+        if let Some(n) = m.normals[i] {
+            k.extend(n.iter().flat_map(|v| v.to_array().map(f32::to_bits)));
+        }
+        if let Some(uv) = m.uvs[i] {
+            k.extend(uv.iter().flat_map(|v| v.to_array().map(f32::to_bits)));
+        }
+    }
+    k
+}
+
+fn define(
+    ctx: &mut Context,
+    id: ObjectId,
+    mesh: &AffMesh,
+    materials: &[MaterialId],
+) -> Result<(), openrt_core::CoreError> {
+    ctx.begin_object(id)?;
+    let mut current = None;
+    for i in 0..mesh.len() {
+        let m = materials[mesh.materials[i]];
+        if current != Some(m) {
+            if current.is_some() {
+                ctx.end()?;
+            }
+            ctx.material(m)?;
+            ctx.begin(PrimitiveKind::Triangles)?;
+            current = Some(m);
+        }
+        if mesh.normals[i].is_none() {
+            ctx.clear_normal()?;
+        }
+        if mesh.uvs[i].is_none() {
+            ctx.clear_tex_coord()?;
+        }
+        for k in 0..3 {
+            if let Some(n) = mesh.normals[i] {
+                ctx.normal(n[k])?;
+            }
+            if let Some(uv) = mesh.uvs[i] {
+                ctx.tex_coord(uv[k])?;
+            }
+            ctx.vertex(mesh.triangles[i][k])?;
+        }
+    }
+    if current.is_some() {
+        ctx.end()?;
+    }
+    ctx.end_object()?;
+    Ok(())
+}
+
+fn define_animated(
+    ctx: &mut Context,
+    id: ObjectId,
+    scene: &AffScene,
+    materials: &[MaterialId],
+    time: f32,
+) -> Result<(), openrt_core::CoreError> {
+    ctx.begin_object(id)?;
+    let mut current = None;
+    for tri in &scene.animated {
+        let m = materials[tri.material];
+        if current != Some(m) {
+            if current.is_some() {
+                ctx.end()?;
+            }
+            ctx.material(m)?;
+            ctx.begin(PrimitiveKind::Triangles)?;
+            current = Some(m);
+        }
+        let (v, n) = tri.at(time);
+        if n.contains(&Vec3::ZERO) {
+            ctx.clear_normal()?;
+        }
+        for k in 0..3 {
+            if !n.contains(&Vec3::ZERO) {
+                ctx.normal(n[k])?;
+            }
+            ctx.vertex(v[k])?;
+        }
+    }
+    if current.is_some() {
+        ctx.end()?;
+    }
+    ctx.end_object()?;
+    Ok(())
+}
