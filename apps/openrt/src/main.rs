@@ -1,16 +1,20 @@
-//! `openrt`: headless rendering of OpenRT-rs scenes.
+//! `openrt`: headless rendering and playback of OpenRT-rs scenes.
 //!
 //! ```text
-//! openrt render [SCENE.ron] -o out.png [--width W --height H --mode gl|whitted --depth N --threads N --frame N]
+//! openrt render [SCENE] -o out.png [--width W --height H --mode gl|whitted --depth N --threads N (--frame N | --time T)]
+//! openrt play SCENE [--frames A..B] [-o DIR] [--stats stats.jsonl] [...same quality options]
 //! ```
-//! Without a scene file the built-in default scene is rendered.
+//! SCENE is a `.ron` or `.aff` file; without one the built-in default scene is used.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Arc;
 
-use clap::{Parser, Subcommand, ValueEnum};
-use openrt_core::{RenderMode, Renderer};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use openrt_accel::BuilderKind;
+use openrt_core::{Image, RenderMode, RenderSettings, Renderer};
+use openrt_scene::ScenePlayer;
 
 #[derive(Parser)]
 #[command(
@@ -31,39 +35,63 @@ enum Mode {
     Whitted,
 }
 
+#[derive(Args, Clone)]
+struct Quality {
+    /// Image width (default: the scene's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (default: the scene's).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Shading mode.
+    #[arg(long, value_enum, default_value_t = Mode::Whitted)]
+    mode: Mode,
+    /// Reflection/refraction depth.
+    #[arg(long, default_value_t = 3)]
+    depth: u32,
+    /// Render threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Renders one frame of a scene to a PNG file.
     Render {
-        /// Scene file (.ron); the built-in default scene when omitted.
+        /// Scene file (.ron or .aff); the built-in default scene when omitted.
         scene: Option<PathBuf>,
         /// Output PNG.
         #[arg(short, long, default_value = "out.png")]
         output: PathBuf,
-        /// Image width (default: the scene's).
+        #[command(flatten)]
+        quality: Quality,
+        /// Frame of an animated scene.
+        #[arg(long, conflicts_with = "time")]
+        frame: Option<u32>,
+        /// Scene time of an animated scene.
         #[arg(long)]
-        width: Option<u32>,
-        /// Image height (default: the scene's).
+        time: Option<f32>,
+    },
+    /// Plays an animation headless, writing frames and per-frame statistics.
+    Play {
+        /// Scene file (.ron or .aff).
+        scene: PathBuf,
+        /// Frames to play, `A..B` (B exclusive) or `A..=B`; default all.
         #[arg(long)]
-        height: Option<u32>,
-        /// Shading mode.
-        #[arg(long, value_enum, default_value_t = Mode::Whitted)]
-        mode: Mode,
-        /// Reflection/refraction depth.
-        #[arg(long, default_value_t = 3)]
-        depth: u32,
-        /// Render threads (default: all cores).
+        frames: Option<String>,
+        /// Folder for the frames as PNG (none written when omitted).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Per-frame statistics as JSON lines (default: DIR/stats.jsonl, or stdout without DIR).
         #[arg(long)]
-        threads: Option<usize>,
-        /// Frame of an animated scene (static scenes have only frame 0).
-        #[arg(long, default_value_t = 0)]
-        frame: u32,
+        stats: Option<PathBuf>,
+        #[command(flatten)]
+        quality: Quality,
     },
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(cli) {
+    match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
@@ -72,52 +100,85 @@ fn main() -> ExitCode {
     }
 }
 
+fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
+    let mut s = player.settings();
+    s.width = q.width.unwrap_or(s.width);
+    s.height = q.height.unwrap_or(s.height);
+    s.mode = match q.mode {
+        Mode::Gl => RenderMode::GlLike,
+        Mode::Whitted => RenderMode::Whitted,
+    };
+    s.max_depth = q.depth;
+    s
+}
+
+fn threads(q: &Quality) -> usize {
+    q.threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
+        .max(1)
+}
+
+/// Parses `A..B` or `A..=B` into a half-open range clamped to `n` frames.
+fn frame_range(spec: Option<&str>, n: u32) -> Result<std::ops::Range<u32>, String> {
+    let Some(spec) = spec else { return Ok(0..n) };
+    let bad = || format!("--frames {spec}: expected A..B or A..=B with A <= B");
+    let (a, b, inclusive) = if let Some((a, b)) = spec.split_once("..=") {
+        (a, b, true)
+    } else if let Some((a, b)) = spec.split_once("..") {
+        (a, b, false)
+    } else {
+        return Err(bad());
+    };
+    let a: u32 = if a.is_empty() { 0 } else { a.parse().map_err(|_| bad())? };
+    let b: u32 = if b.is_empty() {
+        n
+    } else {
+        b.parse::<u32>().map_err(|_| bad())? + u32::from(inclusive)
+    };
+    if a > b {
+        return Err(bad());
+    }
+    if b > n {
+        return Err(format!("--frames {spec}: the scene has {n} frames (0..{n})"));
+    }
+    Ok(a..b)
+}
+
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
         Command::Render {
             scene,
             output,
-            width,
-            height,
-            mode,
-            depth,
-            threads,
+            quality,
             frame,
+            time,
         } => {
-            let loaded = match &scene {
-                Some(p) => openrt_scene::load_ron(p),
-                None => openrt_scene::default_scene(),
-            }
-            .map_err(|e| e.to_string())?;
-            if frame != 0 {
-                return Err(format!("--frame {frame}: this scene is static and has only frame 0"));
-            }
-            let mut settings = loaded.settings;
-            settings.width = width.unwrap_or(settings.width);
-            settings.height = height.unwrap_or(settings.height);
-            settings.mode = match mode {
-                Mode::Gl => RenderMode::GlLike,
-                Mode::Whitted => RenderMode::Whitted,
+            let mut player = ScenePlayer::open(scene.as_deref()).map_err(|e| e.to_string())?;
+            let t = match (frame, time) {
+                (Some(f), _) if f >= player.frames() => {
+                    return Err(format!("--frame {f}: the scene has {} frames", player.frames()));
+                }
+                (Some(f), _) => player.time_of(f),
+                (None, Some(t)) if !t.is_finite() => return Err(format!("--time {t} is not finite")),
+                (None, Some(t)) => t,
+                (None, None) => player.time_of(0),
             };
-            settings.max_depth = depth;
-            let threads = threads
-                .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
-                .max(1);
-            let renderer = Renderer::new(threads);
-            let scene3 = loaded.ctx.scene();
-            let env = Arc::new(loaded.env);
+            let commit = player.set_time(t).map_err(|e| e.to_string())?;
+            let s = settings(&player, &quality);
+            let renderer = Renderer::new(threads(&quality));
             let (img, stats) = renderer
-                .render(&scene3, &env, &loaded.camera, &settings)
+                .render(&player.ctx().scene(), &player.env(), &player.camera(t), &s)
                 .map_err(|e| e.to_string())?;
             save_png(&output, &img)?;
+            let scene = player.ctx().scene();
             let r = stats.rays;
             println!(
-                "{}: {}x{} {:?} depth {} on {} threads: {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); {} instances, {} triangles",
+                "{}: t={t} {}x{} {:?} depth {} on {} threads: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles",
                 output.display(),
-                settings.width,
-                settings.height,
-                settings.mode,
-                settings.max_depth,
+                s.width,
+                s.height,
+                s.mode,
+                s.max_depth,
                 stats.threads,
                 stats.render_ms,
                 stats.mrays_per_s,
@@ -125,15 +186,91 @@ fn run(cli: Cli) -> Result<(), String> {
                 r.shadow,
                 r.reflection,
                 r.refraction,
-                scene3.instances().len(),
-                scene3.instanced_triangles()
+                commit.total_ms,
+                scene.instances().len(),
+                scene.instanced_triangles()
             );
             Ok(())
+        }
+        Command::Play {
+            scene,
+            frames,
+            output,
+            stats,
+            quality,
+        } => {
+            let mut player = ScenePlayer::open(Some(&scene)).map_err(|e| e.to_string())?;
+            let range = frame_range(frames.as_deref(), player.frames())?;
+            if let Some(dir) = &output {
+                std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            }
+            let stats_path = stats.or_else(|| output.as_ref().map(|d| d.join("stats.jsonl")));
+            let mut sink: Box<dyn Write> = match &stats_path {
+                Some(p) => Box::new(std::io::BufWriter::new(
+                    std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
+                )),
+                None => Box::new(std::io::stdout()),
+            };
+            let s = settings(&player, &quality);
+            let renderer = Renderer::new(threads(&quality));
+            let bar = ProgressBar::new(u64::from(range.end - range.start));
+            bar.set_style(
+                ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta} {msg}")
+                    .map_err(|e| e.to_string())?,
+            );
+            for f in range {
+                let t = player.time_of(f);
+                let c = player.set_time(t).map_err(|e| e.to_string())?;
+                let (img, st) = renderer
+                    .render(&player.ctx().scene(), &player.env(), &player.camera(t), &s)
+                    .map_err(|e| e.to_string())?;
+                if let Some(dir) = &output {
+                    save_png(&dir.join(format!("frame_{f:05}.png")), &img)?;
+                }
+                let line = serde_json::json!({
+                    "frame": f,
+                    "time": t,
+                    "commit_ms": c.total_ms,
+                    "toplevel_ms": c.toplevel_ms,
+                    "fast_builds": c.build_count(BuilderKind::Fast),
+                    "fast_build_ms": c.build_ms(BuilderKind::Fast),
+                    "sah_builds": c.build_count(BuilderKind::Sah),
+                    "sah_build_ms": c.build_ms(BuilderKind::Sah),
+                    "promotions_started": c.promotions_started.len(),
+                    "promotions_swapped": c.promotions_swapped.len(),
+                    "render_ms": st.render_ms,
+                    "mrays_per_s": st.mrays_per_s,
+                    "rays": {"primary": st.rays.primary, "shadow": st.rays.shadow, "reflection": st.rays.reflection, "refraction": st.rays.refraction},
+                    "instances": c.instances,
+                });
+                writeln!(sink, "{line}").map_err(|e| e.to_string())?;
+                bar.set_message(format!("{:.1} ms/frame", c.total_ms + st.render_ms));
+                bar.inc(1);
+            }
+            bar.finish();
+            sink.flush().map_err(|e| e.to_string())
         }
     }
 }
 
-fn save_png(path: &Path, img: &openrt_core::Image) -> Result<(), String> {
+fn save_png(path: &Path, img: &Image) -> Result<(), String> {
     image::save_buffer(path, &img.to_rgb8(), img.width, img.height, image::ColorType::Rgb8)
         .map_err(|e| format!("{}: cannot write PNG: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_range;
+
+    #[test]
+    fn frame_ranges_parse_and_are_checked() {
+        assert_eq!(frame_range(None, 10).unwrap(), 0..10);
+        assert_eq!(frame_range(Some("2..5"), 10).unwrap(), 2..5);
+        assert_eq!(frame_range(Some("2..=5"), 10).unwrap(), 2..6);
+        assert_eq!(frame_range(Some("..3"), 10).unwrap(), 0..3);
+        assert_eq!(frame_range(Some("7.."), 10).unwrap(), 7..10);
+        for bad in ["5..2", "a..b", "3", "0..11"] {
+            assert!(frame_range(Some(bad), 10).is_err(), "{bad}");
+        }
+    }
 }

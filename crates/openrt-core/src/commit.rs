@@ -51,7 +51,12 @@ impl CommitStats {
     /// Total build time of one builder, in milliseconds.
     #[must_use]
     pub fn build_ms(&self, builder: BuilderKind) -> f64 {
-        self.builds.iter().filter(|b| b.builder == builder).map(|b| b.ms).sum()
+        self.builds
+            .iter()
+            .filter(|b| b.builder == builder)
+            .map(|b| b.ms)
+            .sum::<f64>()
+            + 0.0
     }
 
     /// Number of trees built with one builder.

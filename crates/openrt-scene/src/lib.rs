@@ -14,16 +14,20 @@
 pub mod aff;
 mod builtin;
 mod error;
+pub mod generate;
 mod loader;
+mod player;
 mod ron_format;
 mod shapes;
 mod texture_io;
 
 pub use builtin::{DEFAULT_SCENE_RON, default_scene};
 pub use error::SceneError;
-pub use loader::{LoadedScene, load_ron, load_ron_str};
+pub use loader::{LoadedScene, RonScene, load_ron, load_ron_any, load_ron_str};
+pub use player::ScenePlayer;
 pub use ron_format::{
-    CameraDesc, InstanceDesc, LightDesc, MaterialDesc, ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp,
+    AnimationDesc, BartDesc, CameraDesc, CameraKeys, GeneratorDesc, InstanceDesc, InstanceKeys, LightDesc,
+    MaterialDesc, ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp,
 };
 pub use shapes::{emit_box, emit_sphere};
 pub use texture_io::load_texture;

@@ -1,59 +1,292 @@
 //! Turning a RON scene into OpenRT-style API calls.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 
-use glam::{Mat4, Vec2, Vec3};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{Mat4, Quat, Vec2, Vec3};
 use openrt_core::{
-    Camera, Context, CoreError, Environment, Material, MaterialId, PointLight, PrimitiveKind, RenderSettings,
+    Camera, CommitStats, Context, CoreError, Environment, InstanceId, Material, MaterialId, ObjectId, PointLight,
+    PrimitiveKind, RenderSettings,
 };
+use rand::{Rng, SeedableRng};
 
 use crate::SceneError;
-use crate::ron_format::{ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp};
+use crate::aff::{AffPlayer, AnimationRange, RotKey, Tcb, Track, VecKey, interpolate_vec, parse_aff};
+use crate::generate::{animart, heightfield, terrain_height, tree};
+use crate::ron_format::{GeneratorDesc, InstanceKeys, ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp};
 use crate::shapes::{emit_box, emit_sphere};
 use crate::texture_io::load_texture;
 
-/// A scene ready to render: the committed context plus what the file says
-/// about viewing it.
+/// A RON scene ready to render: the committed context plus what the file
+/// says about viewing and animating it.
 pub struct LoadedScene {
     /// The context holding objects and instances (already committed once).
     pub ctx: Context,
-    /// The camera.
+    /// The static camera.
     pub camera: Camera,
     /// Lights, ambient and background.
-    pub env: Environment,
+    pub env: Arc<Environment>,
     /// Resolution from the file, default mode and depth.
     pub settings: RenderSettings,
+    /// Animation range (v2).
+    pub animation: Option<AnimationRange>,
+    path: PathBuf,
+    camera_from: Vec<VecKey>,
+    camera_at: Vec<VecKey>,
+    tracked: Vec<(InstanceId, Mat4, Track)>,
+    sway: Vec<(InstanceId, Mat4, f32, f32)>,
+    morphs: Vec<Morph>,
 }
 
-/// Reads and builds a RON scene file.
+/// An object with vertex keyframes (unstructured motion).
+struct Morph {
+    id: ObjectId,
+    material: MaterialId,
+    triangles: Vec<[u32; 3]>,
+    keys: Vec<(f32, Vec<Vec3>)>,
+}
+
+impl Morph {
+    fn vertices_at(&self, time: f32) -> Vec<Vec3> {
+        let k = &self.keys;
+        if time <= k[0].0 || k.len() == 1 {
+            return k[0].1.clone();
+        }
+        if time >= k[k.len() - 1].0 {
+            return k[k.len() - 1].1.clone();
+        }
+        let i = k.windows(2).position(|w| time < w[1].0).unwrap_or(k.len() - 2);
+        let span = k[i + 1].0 - k[i].0;
+        let u = if span > 0.0 { (time - k[i].0) / span } else { 1.0 };
+        k[i].1.iter().zip(&k[i + 1].1).map(|(a, b)| a.lerp(*b, u)).collect()
+    }
+
+    fn define(&self, ctx: &mut Context, time: f32) -> Result<(), CoreError> {
+        let v = self.vertices_at(time);
+        ctx.begin_object(self.id)?;
+        ctx.material(self.material)?;
+        ctx.begin(PrimitiveKind::Triangles)?;
+        for t in &self.triangles {
+            for &i in t {
+                ctx.vertex(v[i as usize])?;
+            }
+        }
+        ctx.end()?;
+        ctx.end_object()?;
+        Ok(())
+    }
+}
+
+impl LoadedScene {
+    /// Moves keyframed instances, swaying trees and morphing objects to
+    /// `time`, then commits. A static scene only commits.
+    pub fn set_time(&mut self, time: f32) -> Result<CommitStats, SceneError> {
+        let path = self.path.clone();
+        let core = |source| SceneError::Core {
+            path: path.clone(),
+            source,
+        };
+        for (id, base, track) in &self.tracked {
+            self.ctx
+                .set_instance_transform(*id, *base * track.matrix(time))
+                .map_err(core)?;
+        }
+        for (id, base, phase, amp) in &self.sway {
+            let a = amp.to_radians() * (std::f32::consts::TAU * 0.5 * time + phase).sin();
+            let r = Mat4::from_quat(Quat::from_rotation_z(a) * Quat::from_rotation_x(0.5 * a));
+            self.ctx.set_instance_transform(*id, *base * r).map_err(core)?;
+        }
+        for m in &self.morphs {
+            m.define(&mut self.ctx, time).map_err(core)?;
+        }
+        self.ctx.commit().map_err(core)
+    }
+
+    /// The camera at `time` (keyframes if the file has them).
+    #[must_use]
+    pub fn camera_at(&self, time: f32) -> Camera {
+        let from = interpolate_vec(&self.camera_from, time).unwrap_or(self.camera.from);
+        let at = interpolate_vec(&self.camera_at, time).unwrap_or(self.camera.at);
+        Camera {
+            from,
+            at,
+            ..self.camera
+        }
+    }
+}
+
+/// Catmull-Rom keys through every listed key (the ends are doubled so the
+/// whole range is usable).
+fn vec_keys(list: &[(f32, [f32; 3])]) -> Vec<VecKey> {
+    let mut keys: Vec<VecKey> = list
+        .iter()
+        .map(|&(time, v)| VecKey {
+            time,
+            value: Vec3::from_array(v),
+            tcb: Tcb::default(),
+        })
+        .collect();
+    if let (Some(&first), Some(&last)) = (keys.first(), keys.last()) {
+        keys.insert(0, first);
+        keys.push(last);
+    }
+    keys
+}
+
+fn track(keys: &InstanceKeys) -> Track {
+    let mut rotation: Vec<RotKey> = keys
+        .rotate
+        .iter()
+        .map(|&(time, axis, degrees)| RotKey {
+            time,
+            axis: Vec3::from_array(axis),
+            degrees,
+            tcb: Tcb::default(),
+        })
+        .collect();
+    if let (Some(&first), Some(&last)) = (rotation.first(), rotation.last()) {
+        rotation.insert(0, first);
+        rotation.push(last);
+    }
+    Track {
+        translation: vec_keys(&keys.translate),
+        rotation,
+        scale: vec_keys(&keys.scale),
+    }
+}
+
+/// What a `.ron` file opens as.
+pub enum RonScene {
+    /// A scene described in the file.
+    Scene(Box<LoadedScene>),
+    /// A wrapper around a BART scene.
+    Bart(Box<AffPlayer>),
+}
+
+/// Reads and builds a RON scene file (not a BART wrapper: see [`load_ron_any`]).
 pub fn load_ron(path: &Path) -> Result<LoadedScene, SceneError> {
+    match load_ron_any(path)? {
+        RonScene::Scene(s) => Ok(*s),
+        RonScene::Bart(_) => Err(SceneError::Invalid {
+            path: path.to_path_buf(),
+            what: "this file wraps a BART scene: open it with ScenePlayer::open".into(),
+        }),
+    }
+}
+
+/// Reads a RON file: a scene, or a wrapper around a BART scene.
+pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
     let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    load_ron_str(&text, path)
+    let file = parse_ron(&text, path)?;
+    if let Some(b) = &file.bart {
+        if !file.objects.is_empty() || !file.instances.is_empty() || !file.generators.is_empty() {
+            return Err(SceneError::Invalid {
+                path: path.to_path_buf(),
+                what: "a BART wrapper ('bart') cannot also define objects, instances or generators".into(),
+            });
+        }
+        let aff = crate::aff::bart_dir().join(&b.file);
+        let mut scene = parse_aff(&aff)?;
+        if let Some(n) = b.animart_triangles {
+            if scene.materials.is_empty() {
+                return Err(SceneError::Invalid {
+                    path: aff,
+                    what: "no material for the generated animart".into(),
+                });
+            }
+            let material = scene.animated.first().map_or(0, |t| t.material);
+            scene.animated = animart(n as usize, b.seed, material);
+            scene.counts.animated_triangles = n as usize;
+        }
+        return Ok(RonScene::Bart(Box::new(AffPlayer::new(scene)?)));
+    }
+    Ok(RonScene::Scene(Box::new(
+        Builder {
+            path: path.to_path_buf(),
+        }
+        .build(&file)?,
+    )))
 }
 
-/// Builds a RON scene from text; `path` names it in errors and anchors relative texture paths.
-pub fn load_ron_str(text: &str, path: &Path) -> Result<LoadedScene, SceneError> {
+fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
     let file: SceneFile = ron::from_str(text).map_err(|e| SceneError::Parse {
         path: path.to_path_buf(),
         line: e.span.start.line,
         col: e.span.start.col,
         msg: e.code.to_string(),
     })?;
-    if file.version != 1 {
+    if file.version != 1 && file.version != 2 {
         return Err(SceneError::Version {
             path: path.to_path_buf(),
             found: file.version,
             supported: SUPPORTED_VERSIONS,
         });
     }
+    let v2_only = file.animation.is_some()
+        || file.camera_keys.is_some()
+        || file.bart.is_some()
+        || !file.generators.is_empty()
+        || file.instances.iter().any(|i| i.keys.is_some())
+        || file
+            .objects
+            .values()
+            .any(|o| matches!(o, ObjectDesc::Morph { .. } | ObjectDesc::Obj { .. }));
+    if file.version == 1 && v2_only {
+        return Err(SceneError::Invalid {
+            path: path.to_path_buf(),
+            what: "animation, camera keys, BART wrappers, generators, Morph and Obj need 'version: 2'".into(),
+        });
+    }
+    Ok(file)
+}
+
+/// Builds a RON scene from text; `path` names it in errors and anchors relative paths.
+pub fn load_ron_str(text: &str, path: &Path) -> Result<LoadedScene, SceneError> {
+    let file = parse_ron(text, path)?;
+    if file.bart.is_some() {
+        return Err(SceneError::Invalid {
+            path: path.to_path_buf(),
+            what: "BART wrappers must be opened from a file".into(),
+        });
+    }
     Builder {
         path: path.to_path_buf(),
     }
     .build(&file)
+}
+
+fn inst_desc_keys(f: &SceneFile, k: usize) -> Option<&InstanceKeys> {
+    f.instances[k].keys.as_ref()
+}
+
+fn inst_keys(k: Option<&InstanceKeys>) -> Option<InstanceKeys> {
+    k.cloned()
+}
+
+/// Defines `id` from lists of triangles, one material per list.
+fn emit_triangles(
+    ctx: &mut Context,
+    id: ObjectId,
+    parts: &[(MaterialId, Vec<openrt_accel::Triangle>)],
+) -> Result<(), CoreError> {
+    ctx.begin_object(id)?;
+    for (m, tris) in parts {
+        ctx.material(*m)?;
+        ctx.begin(PrimitiveKind::Triangles)?;
+        for t in tris {
+            for &v in t {
+                ctx.vertex(v)?;
+            }
+        }
+        ctx.end()?;
+    }
+    ctx.end_object()?;
+    Ok(())
 }
 
 struct Builder {
@@ -127,13 +360,28 @@ impl Builder {
             }
         };
         let mut objects = BTreeMap::new();
+        let mut morphs = Vec::new();
         for (name, o) in &f.objects {
             let id = ctx.gen_object();
-            ctx.begin_object(id).map_err(self.core())?;
-            self.emit(&mut ctx, name, o, &material)?;
-            ctx.end_object().map_err(self.core())?;
+            if let ObjectDesc::Morph {
+                triangles,
+                keys,
+                material: m,
+            } = o
+            {
+                let morph = self.morph(id, name, triangles, keys, material(m, name)?)?;
+                morph
+                    .define(&mut ctx, f.animation.map_or(0.0, |a| a.start))
+                    .map_err(self.core())?;
+                morphs.push(morph);
+            } else {
+                ctx.begin_object(id).map_err(self.core())?;
+                self.emit(&mut ctx, name, o, &material)?;
+                ctx.end_object().map_err(self.core())?;
+            }
             objects.insert(name.as_str(), id);
         }
+        let mut tracked = Vec::new();
         for (k, inst) in f.instances.iter().enumerate() {
             let id = *objects.get(inst.object.as_str()).ok_or_else(|| SceneError::Undefined {
                 path: self.path.clone(),
@@ -151,10 +399,17 @@ impl Builder {
                 }
                 .map_err(self.core())?;
             }
-            ctx.instantiate(id).map_err(self.core())?;
+            let base = ctx.current_matrix();
+            let inst = ctx.instantiate(id).map_err(self.core())?;
+            if let Some(keys) = &inst_keys(inst_desc_keys(f, k)) {
+                tracked.push((inst, base, track(keys)));
+            }
         }
         ctx.load_identity();
-        ctx.commit().map_err(self.core())?;
+        let mut sway = Vec::new();
+        for g in &f.generators {
+            self.generate(&mut ctx, g, &mut sway)?;
+        }
         let c = &f.camera;
         let camera = Camera {
             from: v3(c.from),
@@ -187,16 +442,168 @@ impl Builder {
         {
             return Err(self.invalid("a light, the ambient or the background colour is not finite".into()));
         }
-        Ok(LoadedScene {
+        let animation = match f.animation {
+            Some(a) if a.frames == 0 || !a.start.is_finite() || !a.end.is_finite() || a.end < a.start => {
+                return Err(self.invalid(format!(
+                    "animation {}..{} with {} frames is empty",
+                    a.start, a.end, a.frames
+                )));
+            }
+            Some(a) => Some(AnimationRange {
+                start: a.start,
+                end: a.end,
+                frames: a.frames,
+            }),
+            None => None,
+        };
+        let keys = f.camera_keys.clone().unwrap_or_default();
+        let mut scene = LoadedScene {
             ctx,
             camera,
-            env,
+            env: Arc::new(env),
             settings: RenderSettings {
                 width: f.resolution.0,
                 height: f.resolution.1,
                 ..RenderSettings::default()
             },
+            animation,
+            path: self.path.clone(),
+            camera_from: vec_keys(&keys.from),
+            camera_at: vec_keys(&keys.at),
+            tracked,
+            sway,
+            morphs: Vec::new(),
+        };
+        // Morphs were defined at the start time already; set_time redefines them per frame.
+        scene.set_time(animation.map_or(0.0, |a| a.start))?;
+        scene.morphs = morphs;
+        Ok(scene)
+    }
+
+    fn morph(
+        &self,
+        id: ObjectId,
+        name: &str,
+        triangles: &[[u32; 3]],
+        keys: &[(f32, Vec<[f32; 3]>)],
+        material: MaterialId,
+    ) -> Result<Morph, SceneError> {
+        let Some(first) = keys.first() else {
+            return Err(self.invalid(format!("object '{name}': a Morph needs at least one key")));
+        };
+        let n = first.1.len();
+        let mut prev = f32::NEG_INFINITY;
+        for (k, (t, v)) in keys.iter().enumerate() {
+            if v.len() != n {
+                return Err(self.invalid(format!(
+                    "object '{name}': key {k} has {} vertices, key 0 has {n}",
+                    v.len()
+                )));
+            }
+            if !t.is_finite() || *t < prev {
+                return Err(self.invalid(format!("object '{name}': key times must be finite and not decrease")));
+            }
+            prev = *t;
+        }
+        if let Some((t, i)) = triangles
+            .iter()
+            .enumerate()
+            .find_map(|(t, tri)| tri.iter().find(|&&i| i as usize >= n).map(|&i| (t, i)))
+        {
+            return Err(self.invalid(format!(
+                "object '{name}': triangle {t} uses vertex {i}, but there are {n} vertices"
+            )));
+        }
+        Ok(Morph {
+            id,
+            material,
+            triangles: triangles.to_vec(),
+            keys: keys
+                .iter()
+                .map(|(t, v)| (*t, v.iter().map(|p| Vec3::from_array(*p)).collect()))
+                .collect(),
         })
+    }
+
+    fn generate(
+        &self,
+        ctx: &mut Context,
+        g: &GeneratorDesc,
+        sway: &mut Vec<(InstanceId, Mat4, f32, f32)>,
+    ) -> Result<(), SceneError> {
+        let core = self.core();
+        match *g {
+            GeneratorDesc::Terrain {
+                size,
+                grid,
+                height,
+                trees,
+                tree_triangles,
+                tree_size,
+                sway_degrees,
+                seed,
+            } => {
+                if !(size > 0.0 && height.is_finite() && tree_size > 0.0) || grid == 0 || grid > 4096 {
+                    return Err(self.invalid(format!(
+                        "Terrain: size {size}, grid {grid}, tree size {tree_size} out of range"
+                    )));
+                }
+                let ground = ctx
+                    .create_material(Material {
+                        diffuse: Vec3::new(0.35, 0.5, 0.25),
+                        ambient: Vec3::new(0.2, 0.3, 0.15),
+                        ..Material::default()
+                    })
+                    .map_err(&core)?;
+                let bark = ctx
+                    .create_material(Material {
+                        diffuse: Vec3::new(0.4, 0.28, 0.15),
+                        ..Material::default()
+                    })
+                    .map_err(&core)?;
+                let leaf = [
+                    ctx.create_material(Material {
+                        diffuse: Vec3::new(0.2, 0.55, 0.15),
+                        ..Material::default()
+                    })
+                    .map_err(&core)?,
+                    ctx.create_material(Material {
+                        diffuse: Vec3::new(0.55, 0.5, 0.1),
+                        ..Material::default()
+                    })
+                    .map_err(&core)?,
+                ];
+                let field = ctx.gen_object();
+                emit_triangles(ctx, field, &[(ground, heightfield(grid as usize, size, height, seed))])
+                    .map_err(&core)?;
+                ctx.instantiate(field).map_err(&core)?;
+                let kinds: Vec<ObjectId> = (0..2)
+                    .map(|k| {
+                        let (b, l) = tree(tree_triangles as usize, seed + 1 + k);
+                        let id = ctx.gen_object();
+                        emit_triangles(ctx, id, &[(bark, b), (leaf[k as usize], l)]).map(|()| id)
+                    })
+                    .collect::<Result<_, _>>()
+                    .map_err(&core)?;
+                let mut rng = rand::rngs::SmallRng::seed_from_u64(seed ^ 0x7EE5);
+                for i in 0..trees {
+                    let x = rng.random_range(-0.45..0.45) * size;
+                    let z = rng.random_range(-0.45..0.45) * size;
+                    let y = terrain_height(x, z, size, height, seed);
+                    let s = tree_size * rng.random_range(0.7..1.3);
+                    let base = Mat4::from_translation(Vec3::new(x, y, z))
+                        * Mat4::from_rotation_y(rng.random_range(0.0..6.3))
+                        * Mat4::from_scale(Vec3::splat(s));
+                    ctx.load_matrix(base).map_err(&core)?;
+                    let inst = ctx.instantiate(kinds[(i % 2) as usize]).map_err(&core)?;
+                    if sway_degrees != 0.0 {
+                        sway.push((inst, base, rng.random_range(0.0..6.3), sway_degrees));
+                    }
+                }
+                ctx.load_identity();
+                Ok(())
+            }
+        }
     }
 
     fn emit(
@@ -246,6 +653,42 @@ impl Builder {
                             ctx.tex_coord(Vec2::from_array(uv[iu])).map_err(&core)?;
                         }
                         ctx.vertex(v3(*p)).map_err(&core)?;
+                    }
+                }
+                ctx.end().map_err(&core)
+            }
+            ObjectDesc::Morph { .. } => Err(self.invalid(format!("object '{name}': Morph is defined per frame"))),
+            ObjectDesc::Obj { path, material: m } => {
+                ctx.material(material(m, name)?).map_err(&core)?;
+                let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
+                let (models, _) = tobj::load_obj(&file, &tobj::GPU_LOAD_OPTIONS).map_err(|e| SceneError::Invalid {
+                    path: file.clone(),
+                    what: format!("OBJ file (used by object '{name}' in {}): {e}", self.path.display()),
+                })?;
+                ctx.begin(PrimitiveKind::Triangles).map_err(&core)?;
+                for model in &models {
+                    let mesh = &model.mesh;
+                    let nv = mesh.positions.len() / 3;
+                    let has_n = mesh.normals.len() == mesh.positions.len();
+                    let has_uv = mesh.texcoords.len() / 2 == nv;
+                    for &i in &mesh.indices {
+                        let i = i as usize;
+                        if i >= nv {
+                            return Err(SceneError::Invalid {
+                                path: file.clone(),
+                                what: format!("OBJ model '{}': index {i} out of range ({nv} vertices)", model.name),
+                            });
+                        }
+                        if has_n {
+                            ctx.normal(Vec3::from_slice(&mesh.normals[3 * i..3 * i + 3]))
+                                .map_err(&core)?;
+                        }
+                        if has_uv {
+                            ctx.tex_coord(Vec2::new(mesh.texcoords[2 * i], 1.0 - mesh.texcoords[2 * i + 1]))
+                                .map_err(&core)?;
+                        }
+                        ctx.vertex(Vec3::from_slice(&mesh.positions[3 * i..3 * i + 3]))
+                            .map_err(&core)?;
                     }
                 }
                 ctx.end().map_err(&core)

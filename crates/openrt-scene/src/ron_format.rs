@@ -7,8 +7,9 @@ use std::collections::BTreeMap;
 
 use serde::Deserialize;
 
-/// Versions of the format this build reads.
-pub const SUPPORTED_VERSIONS: &str = "1";
+/// Versions of the format this build reads: 1 (static scenes) and 2 (adds
+/// animation, BART wrappers, OBJ files and generators).
+pub const SUPPORTED_VERSIONS: &str = "1, 2";
 
 /// A scene file.
 #[derive(Debug, Clone, Deserialize)]
@@ -38,9 +39,84 @@ pub struct SceneFile {
     #[serde(default)]
     pub materials: BTreeMap<String, MaterialDesc>,
     /// Objects by name.
+    #[serde(default)]
     pub objects: BTreeMap<String, ObjectDesc>,
     /// Instances of the objects.
+    #[serde(default)]
     pub instances: Vec<InstanceDesc>,
+    /// (v2) Animation time range.
+    #[serde(default)]
+    pub animation: Option<AnimationDesc>,
+    /// (v2) Camera keyframes (Catmull-Rom through the keys).
+    #[serde(default)]
+    pub camera_keys: Option<CameraKeys>,
+    /// (v2) Play a BART AFF scene instead (all other fields must be left out).
+    #[serde(default)]
+    pub bart: Option<BartDesc>,
+    /// (v2) Procedural content added to the scene.
+    #[serde(default)]
+    pub generators: Vec<GeneratorDesc>,
+}
+
+/// (v2) Animation range: `frames` frames evenly spaced from `start` to `end`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimationDesc {
+    /// First time.
+    pub start: f32,
+    /// Last time.
+    pub end: f32,
+    /// Number of frames.
+    pub frames: u32,
+}
+
+/// (v2) Camera keyframes: `(time, (x, y, z))` lists.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraKeys {
+    /// Eye positions.
+    pub from: Vec<(f32, [f32; 3])>,
+    /// Look-at points.
+    pub at: Vec<(f32, [f32; 3])>,
+}
+
+/// (v2) A BART scene, found relative to `OPENRT_BART_DIR`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BartDesc {
+    /// AFF file relative to the BART folder, e.g. `"kitchen/kitchen.aff"`.
+    pub file: String,
+    /// Replace the animated (`tpa`) triangles by this many generated ones
+    /// flying in and assembling (museum 4k, 16k, ...).
+    #[serde(default)]
+    pub animart_triangles: Option<u32>,
+    /// Seed of the generated animart.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// (v2) Procedural content.
+#[derive(Debug, Clone, Deserialize)]
+pub enum GeneratorDesc {
+    /// A heightfield with instanced, swaying trees of two kinds.
+    Terrain {
+        /// Edge length of the square terrain.
+        size: f32,
+        /// Cells per edge (2 triangles each).
+        grid: u32,
+        /// Height amplitude.
+        height: f32,
+        /// Tree instances.
+        trees: u32,
+        /// Triangles per tree object.
+        tree_triangles: u32,
+        /// Tree height.
+        tree_size: f32,
+        /// Sway amplitude in degrees (0: static trees).
+        sway_degrees: f32,
+        /// Seed.
+        seed: u64,
+    },
 }
 
 fn default_resolution() -> (u32, u32) {
@@ -174,6 +250,25 @@ pub enum ObjectDesc {
         #[serde(default)]
         material: Option<String>,
     },
+    /// (v2) A mesh whose vertices move (unstructured motion): vertex
+    /// positions at key times, linearly interpolated and clamped.
+    Morph {
+        /// Vertex index triples.
+        triangles: Vec<[u32; 3]>,
+        /// `(time, vertex positions)`, every list as long as the first.
+        keys: Vec<(f32, Vec<[f32; 3]>)>,
+        /// Material name.
+        #[serde(default)]
+        material: Option<String>,
+    },
+    /// (v2) A Wavefront OBJ file (relative to the scene file), through `tobj`.
+    Obj {
+        /// The file.
+        path: String,
+        /// Material name (OBJ materials are not read).
+        #[serde(default)]
+        material: Option<String>,
+    },
     /// A planar quad, texture coordinates (0,0), (1,0), (1,1), (0,1) times `uv_scale`.
     Quad {
         /// The four corners in order.
@@ -218,4 +313,20 @@ pub struct InstanceDesc {
     /// Transform steps (empty: identity).
     #[serde(default)]
     pub transform: Vec<TransformOp>,
+    /// (v2) Keyframed motion applied inside `transform` (affine motion).
+    #[serde(default)]
+    pub keys: Option<InstanceKeys>,
+}
+
+/// (v2) Instance keyframes, Catmull-Rom through the keys; the motion is
+/// `transform * translate(t) * rotate(t) * scale(t)`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InstanceKeys {
+    /// `(time, (x, y, z))`.
+    pub translate: Vec<(f32, [f32; 3])>,
+    /// `(time, axis, degrees)`: absolute rotations.
+    pub rotate: Vec<(f32, [f32; 3], f32)>,
+    /// `(time, (x, y, z))`.
+    pub scale: Vec<(f32, [f32; 3])>,
 }

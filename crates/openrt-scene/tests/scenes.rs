@@ -5,7 +5,6 @@
 //! intended change, and look at them before committing.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 use openrt_core::{Image, RenderMode, RenderSettings, Renderer};
 use openrt_scene::{SceneError, load_ron, load_ron_str};
@@ -23,7 +22,7 @@ fn render(scene: &Path, mode: RenderMode) -> Image {
         max_depth: 3,
     };
     Renderer::new(2)
-        .render(&s.ctx.scene(), &Arc::new(s.env), &s.camera, &settings)
+        .render(&s.ctx.scene(), &s.env, &s.camera, &settings)
         .unwrap()
         .0
 }

@@ -1,0 +1,118 @@
+//! One interface over every scene kind: static RON, animated RON and AFF.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use openrt_core::{Camera, CommitStats, Context, Environment, RenderSettings};
+
+use crate::aff::AffPlayer;
+use crate::{LoadedScene, RonScene, SceneError, default_scene, load_ron_any};
+
+/// A scene that can be stepped through time.
+pub enum ScenePlayer {
+    /// A RON scene (static or animated).
+    Ron(Box<LoadedScene>),
+    /// A BART AFF scene.
+    Aff(Box<AffPlayer>),
+}
+
+impl ScenePlayer {
+    /// Opens a scene by extension (`.aff` or `.ron`); `None` opens the built-in default scene.
+    pub fn open(path: Option<&Path>) -> Result<Self, SceneError> {
+        let Some(path) = path else {
+            return Ok(Self::Ron(Box::new(default_scene()?)));
+        };
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("aff") => Ok(Self::Aff(Box::new(AffPlayer::load(path)?))),
+            Some("ron") => Ok(match load_ron_any(path)? {
+                RonScene::Scene(s) => Self::Ron(s),
+                RonScene::Bart(a) => Self::Aff(a),
+            }),
+            _ => Err(SceneError::Invalid {
+                path: path.to_path_buf(),
+                what: "unknown scene type: expected a .ron or .aff file".into(),
+            }),
+        }
+    }
+
+    /// Number of frames.
+    #[must_use]
+    pub fn frames(&self) -> u32 {
+        match self {
+            Self::Ron(s) => s.animation.map_or(1, |a| a.frames),
+            Self::Aff(a) => a.frames(),
+        }
+    }
+
+    /// Scene time of a frame.
+    #[must_use]
+    pub fn time_of(&self, frame: u32) -> f32 {
+        match self {
+            Self::Ron(s) => s.animation.map_or(0.0, |a| a.time(frame)),
+            Self::Aff(a) => a.time_of(frame),
+        }
+    }
+
+    /// First and last time of the animation.
+    #[must_use]
+    pub fn time_range(&self) -> (f32, f32) {
+        (self.time_of(0), self.time_of(self.frames().saturating_sub(1)))
+    }
+
+    /// Moves the scene to `time` and commits.
+    pub fn set_time(&mut self, time: f32) -> Result<CommitStats, SceneError> {
+        match self {
+            Self::Ron(s) => s.set_time(time),
+            Self::Aff(a) => a.set_time(time),
+        }
+    }
+
+    /// The scene's camera at `time`.
+    #[must_use]
+    pub fn camera(&self, time: f32) -> Camera {
+        match self {
+            Self::Ron(s) => s.camera_at(time),
+            Self::Aff(a) => a.camera(time),
+        }
+    }
+
+    /// Lights, ambient light and background.
+    #[must_use]
+    pub fn env(&self) -> Arc<Environment> {
+        match self {
+            Self::Ron(s) => Arc::clone(&s.env),
+            Self::Aff(a) => Arc::clone(&a.env),
+        }
+    }
+
+    /// The context holding the scene.
+    #[must_use]
+    pub fn ctx(&self) -> &Context {
+        match self {
+            Self::Ron(s) => &s.ctx,
+            Self::Aff(a) => &a.ctx,
+        }
+    }
+
+    /// The context, mutably (to change the scene interactively).
+    pub fn ctx_mut(&mut self) -> &mut Context {
+        match self {
+            Self::Ron(s) => &mut s.ctx,
+            Self::Aff(a) => &mut a.ctx,
+        }
+    }
+
+    /// The resolution the scene asks for, default mode and depth.
+    #[must_use]
+    pub fn settings(&self) -> RenderSettings {
+        match self {
+            Self::Ron(s) => s.settings,
+            Self::Aff(a) => a.settings(),
+        }
+    }
+}

@@ -1,0 +1,241 @@
+//! The BART scenes: data integrity, documented counts, golden frames,
+//! motion classes, and malformed AFF input.
+//!
+//! The data is found through `OPENRT_BART_DIR` (default `../shared/bart`
+//! from the repository root). Without it these tests fail when `CI` is set
+//! and are skipped with a printed reason otherwise.
+
+use std::path::{Path, PathBuf};
+
+use openrt_accel::BuilderKind;
+use openrt_core::{RenderMode, RenderSettings, Renderer};
+use openrt_scene::SceneError;
+use openrt_scene::aff::{AffPlayer, parse_aff};
+use sha2::{Digest, Sha256};
+
+fn bart() -> Option<PathBuf> {
+    let dir = std::env::var_os("OPENRT_BART_DIR").map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bart"),
+        PathBuf::from,
+    );
+    if dir.join("kitchen/kitchen.aff").is_file() {
+        return Some(dir);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "BART data missing at {} (set OPENRT_BART_DIR)",
+        dir.display()
+    );
+    println!(
+        "skipped: BART data not found at {} (set OPENRT_BART_DIR)",
+        dir.display()
+    );
+    None
+}
+
+#[test]
+fn the_data_matches_its_checksums() {
+    let Some(dir) = bart() else { return };
+    let sums = std::fs::read_to_string(dir.join("SHA256SUMS")).unwrap();
+    let mut checked = 0;
+    for line in sums.lines().filter(|l| !l.trim().is_empty()) {
+        let (hash, name) = line.split_once(char::is_whitespace).unwrap();
+        let name = name.trim().trim_start_matches('*');
+        let bytes = std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let got = Sha256::digest(&bytes).iter().fold(String::new(), |mut s, b| {
+            use std::fmt::Write;
+            let _ = write!(s, "{b:02x}");
+            s
+        });
+        assert_eq!(got, hash, "{name} is corrupt");
+        checked += 1;
+    }
+    assert!(checked > 60);
+}
+
+#[test]
+fn kitchen_and_museum5_have_the_documented_counts() {
+    let Some(dir) = bart() else { return };
+    let k = parse_aff(&dir.join("kitchen/kitchen.aff")).unwrap();
+    assert_eq!(k.counts.mesh_triangles, 110_561);
+    assert_eq!(k.counts.mesh_instances, 393);
+    assert_eq!(k.counts.lights, 6);
+    assert_eq!(k.counts.animated_node_names, 5);
+    assert_eq!(k.animation.unwrap().frames, 800);
+    assert!(k.tracks.contains_key("camera"));
+    let m = parse_aff(&dir.join("museum/museum5.aff")).unwrap();
+    assert_eq!(m.counts.mesh_triangles, 10_000);
+    assert_eq!(m.counts.polygons, 133);
+    assert_eq!(m.counts.textured_triangles, 10);
+    assert_eq!(m.counts.cones, 8);
+    assert_eq!(m.counts.animated_triangles, 1024);
+    assert!(
+        m.animated
+            .iter()
+            .all(|t| t.times.len() == 5 && t.times[0] == 0.0 && t.times[4] == 4.0)
+    );
+    assert_eq!(m.counts.lights, 2);
+    assert_eq!(m.animation.unwrap().frames, 300);
+}
+
+/// Same comparison as the shipped-scene goldens (see scenes.rs).
+fn check_golden(name: &str, img: &openrt_core::Image) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/golden")
+        .join(format!("{name}.png"));
+    if std::env::var_os("OPENRT_BLESS").is_some() {
+        image::save_buffer(&path, &img.to_rgb8(), img.width, img.height, image::ColorType::Rgb8).unwrap();
+        return;
+    }
+    let golden = image::open(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8();
+    let bytes = img.to_rgb8();
+    let (mut se, mut off) = (0.0f64, 0usize);
+    for (a, b) in golden.as_raw().chunks(3).zip(bytes.chunks(3)) {
+        let d: Vec<i32> = a.iter().zip(b).map(|(&x, &y)| i32::from(x) - i32::from(y)).collect();
+        se += d.iter().map(|&v| f64::from(v * v)).sum::<f64>() / 3.0;
+        off += usize::from(d.iter().any(|v| v.abs() > 8));
+    }
+    let n = f64::from(img.width * img.height);
+    let rmse = (se / n).sqrt();
+    assert!(
+        rmse < 1.5 && (off as f64) < 0.01 * n,
+        "{name}: RMSE {rmse:.3}/255, {off} pixels off"
+    );
+}
+
+fn frame(player: &mut AffPlayer, f: u32) -> openrt_core::Image {
+    let t = player.time_of(f);
+    player.set_time(t).unwrap();
+    let s = RenderSettings {
+        width: 160,
+        height: 120,
+        mode: RenderMode::Whitted,
+        max_depth: 3,
+    };
+    Renderer::new(2)
+        .render(&player.ctx.scene(), &player.env, &player.camera(t), &s)
+        .unwrap()
+        .0
+}
+
+#[test]
+fn kitchen_frame_0_and_museum_frame_200_match_their_goldens() {
+    let Some(dir) = bart() else { return };
+    let mut k = AffPlayer::load(&dir.join("kitchen/kitchen.aff")).unwrap();
+    check_golden("kitchen-f0", &frame(&mut k, 0));
+    let mut m = AffPlayer::load(&dir.join("museum/museum5.aff")).unwrap();
+    check_golden("museum5-f200", &frame(&mut m, 200));
+}
+
+#[test]
+fn playback_moves_the_car_and_rebuilds_only_the_animated_triangles() {
+    let Some(dir) = bart() else { return };
+    let mut k = AffPlayer::load(&dir.join("kitchen/kitchen.aff")).unwrap();
+    let first = k.set_time(k.time_of(0)).unwrap();
+    assert_eq!(
+        first.build_count(BuilderKind::Sah),
+        first.builds.len(),
+        "first frame: SAH trees only"
+    );
+    let car_before = k.ctx.scene().instances().iter().map(|i| i.to_world).collect::<Vec<_>>();
+    let later = k.set_time(k.time_of(300)).unwrap();
+    assert!(later.builds.is_empty(), "the kitchen has only affine motion");
+    let car_after = k.ctx.scene().instances().iter().map(|i| i.to_world).collect::<Vec<_>>();
+    assert_ne!(car_before, car_after, "the toy car moved");
+    // The camera follows its track.
+    assert_ne!(k.camera(k.time_of(0)).from, k.camera(k.time_of(300)).from);
+
+    let mut m = AffPlayer::load(&dir.join("museum/museum5.aff")).unwrap();
+    m.set_time(m.time_of(0)).unwrap();
+    for f in [100, 101, 102] {
+        let st = m.set_time(m.time_of(f)).unwrap();
+        assert_eq!(st.builds.len(), 1, "only the animated triangles are rebuilt");
+        assert_eq!(st.builds[0].builder, BuilderKind::Fast);
+        assert_eq!(st.builds[0].triangles, 1024);
+    }
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn parse_err(text: &str) -> SceneError {
+    let dir = std::env::temp_dir().join(format!("openrt-aff-{}-{}", std::process::id(), text.len()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = write(&dir, "t.aff", text);
+    match parse_aff(&p) {
+        Ok(_) => panic!("accepted:\n{text}"),
+        Err(e) => e,
+    }
+}
+
+fn assert_parse_error(text: &str, line: usize, needle: &str) {
+    let e = parse_err(text);
+    match &e {
+        SceneError::Parse { line: l, path, .. } => {
+            assert_eq!(*l, line, "{e}");
+            assert!(path.ends_with("t.aff"), "{e}");
+            assert!(e.to_string().contains(needle), "'{needle}' not in: {e}");
+        }
+        other => panic!("not a parse error: {other}"),
+    }
+}
+
+#[test]
+fn malformed_aff_files_give_file_and_line() {
+    // Truncated mesh: the file ends inside the triangle list.
+    assert_parse_error(
+        "m\n vertices 3\n 0 0 0\n 1 0 0\n 0 1 0\n triangles 2\n 0 1 2\n",
+        7,
+        "file ends",
+    );
+    // Wrong count: fewer vertices than announced, so a keyword is read as a number.
+    assert_parse_error(
+        "m\nvertices 4\n0 0 0\n1 0 0\n0 1 0\ntriangles 1\n0 1 2\n",
+        6,
+        "expected vertex",
+    );
+    // Bad index.
+    assert_parse_error(
+        "m\nvertices 3\n0 0 0\n1 0 0\n0 1 0\ntriangles 1\n0 1 3\n",
+        7,
+        "out of range",
+    );
+    // NaN and infinity.
+    assert_parse_error("p 3\n0 0 0\n1 nan 0\n0 1 0\n", 3, "not a finite number");
+    assert_parse_error("l 1 2 inf\n", 1, "not a finite number");
+    // Unknown command, unmatched braces, bad xs.
+    assert_parse_error("b 0 0 0\nq 1 2 3\n", 2, "unknown command 'q'");
+    assert_parse_error("xs 1 1 1 0 1 0 0 0 0 0\n{\n p 3 0 0 0 1 0 0 0 1 0\n", 3, "'}' expected");
+    assert_parse_error("}\n", 1, "without a matching");
+    assert_parse_error("x {\n}\n", 1, "needs a name");
+    // tpa without samples, keys going back in time.
+    assert_parse_error("tpa 0\n", 1, "sample count");
+    assert_parse_error(
+        "k n {\n transl 2\n 1 0 0 0 0 0 0\n 0 0 0 0 0 0 0\n}\n",
+        2,
+        "must not decrease",
+    );
+    // A missing include names the file at the include line.
+    assert_parse_error("b 0 0 0\ni 0 nothere.aff\n", 2, "nothere.aff");
+}
+
+#[test]
+fn include_cycles_and_missing_textures_are_errors() {
+    let dir = std::env::temp_dir().join(format!("openrt-aff-cycle-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    write(&dir, "a.aff", "i 0 b.aff\n");
+    let b = write(&dir, "b.aff", "i 0 a.aff\n");
+    let e = parse_aff(&b).err().unwrap();
+    assert!(e.to_string().contains("deeper than"), "{e}");
+    let t = write(&dir, "tex.aff", "tt missing.ppm\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n");
+    let e = AffPlayer::load(&t).err().unwrap();
+    assert!(
+        matches!(e, SceneError::Texture { .. }) && e.to_string().contains("missing.ppm"),
+        "{e}"
+    );
+}
