@@ -1,0 +1,63 @@
+//! `openrt-viewer`: the interactive viewer of OpenRT-rs.
+//!
+//! ```text
+//! openrt-viewer [SCENE.ron|SCENE.aff] [--threads N] [--screenshot out.png --frames N]
+//! ```
+//! Renders continuously on a background thread and shows each finished
+//! frame; with `--screenshot`, plays N frames, saves a screenshot of the
+//! window (and `out.json` with what the overlay reported) and exits.
+
+mod app;
+mod orbit;
+mod worker;
+
+use std::path::PathBuf;
+
+use clap::Parser;
+
+#[derive(Parser)]
+#[command(name = "openrt-viewer", version, about = "Interactive ray tracing of dynamic scenes")]
+struct Cli {
+    /// Scene file (.ron or .aff); the built-in default scene when omitted.
+    scene: Option<PathBuf>,
+    /// Render threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Play the animation, save a screenshot of the window to this PNG after `--frames` frames, and exit.
+    #[arg(long)]
+    screenshot: Option<PathBuf>,
+    /// Frames to render before the screenshot.
+    #[arg(long, default_value_t = 10)]
+    frames: u32,
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let threads = cli
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
+        .max(1);
+    let options = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_inner_size([1100.0, 700.0])
+            .with_title("OpenRT-rs"),
+        ..Default::default()
+    };
+    let opts = app::Options {
+        scene: cli.scene,
+        screenshot: cli.screenshot,
+        frames: cli.frames,
+        threads,
+    };
+    match eframe::run_native(
+        "OpenRT-rs",
+        options,
+        Box::new(move |cc| Ok(Box::new(app::ViewerApp::new(cc, opts)))),
+    ) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! The render thread: owns the scene and the renderer, so the UI never
+//! blocks on a frame. The UI sends requests; only the newest is rendered.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+use crossbeam::channel::{Receiver, Sender, unbounded};
+use openrt_core::{Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer};
+use openrt_scene::ScenePlayer;
+
+/// What the UI asks for.
+pub enum Request {
+    /// Open a scene (`None`: the built-in default scene).
+    Open(Option<PathBuf>),
+    /// Render the scene at `time` with `camera` (`None`: the scene's own camera).
+    Render {
+        time: f32,
+        camera: Option<Camera>,
+        settings: RenderSettings,
+        threads: usize,
+    },
+}
+
+/// Facts about the open scene.
+#[derive(Clone, Debug)]
+pub struct SceneInfo {
+    pub name: String,
+    pub frames: u32,
+    pub time_range: (f32, f32),
+    pub settings: RenderSettings,
+}
+
+/// What the render thread sends back.
+pub enum Reply {
+    Opened(SceneInfo),
+    Frame(Box<FrameResult>),
+    Error(String),
+}
+
+/// A finished frame with its figures.
+pub struct FrameResult {
+    pub image: Image,
+    pub stats: FrameStats,
+    pub commit: CommitStats,
+    pub camera: Camera,
+    pub time: f32,
+    pub objects: usize,
+    pub instances: usize,
+    pub triangles: usize,
+}
+
+pub struct Worker {
+    pub tx: Sender<Request>,
+    pub rx: Receiver<Reply>,
+    handle: Option<JoinHandle<()>>,
+}
+
+impl Worker {
+    pub fn start(repaint: impl Fn() + Send + 'static) -> Self {
+        let (tx, req_rx) = unbounded::<Request>();
+        let (reply_tx, rx) = unbounded::<Reply>();
+        let handle = std::thread::Builder::new()
+            .name("openrt-viewer-render".into())
+            .spawn(move || run(&req_rx, &reply_tx, &repaint))
+            .expect("spawning the render thread");
+        Self {
+            tx,
+            rx,
+            handle: Some(handle),
+        }
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        // Closing the request channel ends the thread.
+        let (dead, _) = unbounded();
+        self.tx = dead;
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()) {
+    let mut player: Option<ScenePlayer> = None;
+    let mut renderer: Option<Renderer> = None;
+    while let Ok(first) = requests.recv() {
+        // Coalesce: an Open always runs; of the renders only the newest.
+        let mut pending = vec![first];
+        pending.extend(requests.try_iter());
+        let last_render = pending.iter().rposition(|r| matches!(r, Request::Render { .. }));
+        for (i, req) in pending.into_iter().enumerate() {
+            let reply = match req {
+                Request::Open(path) => match ScenePlayer::open(path.as_deref()) {
+                    Ok(p) => {
+                        let info = SceneInfo {
+                            name: path
+                                .as_ref()
+                                .map_or_else(|| "built-in room".into(), |p| p.display().to_string()),
+                            frames: p.frames(),
+                            time_range: p.time_range(),
+                            settings: p.settings(),
+                        };
+                        player = Some(p);
+                        Reply::Opened(info)
+                    }
+                    Err(e) => Reply::Error(e.to_string()),
+                },
+                Request::Render { .. } if Some(i) != last_render => continue,
+                Request::Render {
+                    time,
+                    camera,
+                    settings,
+                    threads,
+                } => {
+                    let Some(p) = player.as_mut() else { continue };
+                    if renderer.as_ref().is_none_or(|r| r.threads() != threads) {
+                        renderer = Some(Renderer::new(threads));
+                    }
+                    let r = renderer.as_ref().expect("created above");
+                    match render(p, r, time, camera, &settings) {
+                        Ok(f) => Reply::Frame(Box::new(f)),
+                        Err(e) => Reply::Error(e),
+                    }
+                }
+            };
+            if replies.send(reply).is_err() {
+                return;
+            }
+            repaint();
+        }
+    }
+}
+
+fn render(
+    p: &mut ScenePlayer,
+    r: &Renderer,
+    time: f32,
+    camera: Option<Camera>,
+    settings: &RenderSettings,
+) -> Result<FrameResult, String> {
+    let commit = p.set_time(time).map_err(|e| e.to_string())?;
+    let camera = camera.unwrap_or_else(|| p.camera(time));
+    let scene = p.ctx().scene();
+    let env: Arc<_> = p.env();
+    let (image, stats) = r.render(&scene, &env, &camera, settings).map_err(|e| e.to_string())?;
+    let mut objects: Vec<_> = scene.instances().iter().map(|i| i.object).collect();
+    objects.sort_unstable();
+    objects.dedup();
+    Ok(FrameResult {
+        image,
+        stats,
+        commit,
+        camera,
+        time,
+        objects: objects.len(),
+        instances: scene.instances().len(),
+        triangles: scene.instanced_triangles(),
+    })
+}

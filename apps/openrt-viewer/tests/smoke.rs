@@ -1,0 +1,82 @@
+//! Starts the real viewer window under Xvfb on the BART kitchen, plays a
+//! few frames, and checks the screenshot it takes of itself: a rendered
+//! frame (not blank, not black) and an overlay that reports frames.
+//!
+//! Needs `xvfb-run` (Debian's `xvfb`, installed by `scripts/setup.sh`) and the
+//! BART data; without them the test fails when `CI` is set and is skipped
+//! with a printed reason otherwise.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn available() -> Option<PathBuf> {
+    let bart = std::env::var_os("OPENRT_BART_DIR").map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bart"),
+        PathBuf::from,
+    );
+    let xvfb = Command::new("xvfb-run").arg("--help").output().is_ok();
+    let reason = if !xvfb {
+        "xvfb-run not found (apt-get install xvfb)"
+    } else if !bart.join("kitchen/kitchen.aff").is_file() {
+        "BART data not found (set OPENRT_BART_DIR)"
+    } else {
+        return Some(bart);
+    };
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "viewer smoke test cannot run: {reason}"
+    );
+    println!("skipped: {reason}");
+    None
+}
+
+#[test]
+fn the_viewer_renders_the_kitchen_in_a_real_window() {
+    let Some(bart) = available() else { return };
+    let out = std::env::temp_dir().join(format!("openrt-viewer-smoke-{}.png", std::process::id()));
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/kitchen.ron");
+    let status = Command::new("timeout")
+        .args(["300", "xvfb-run", "-a", "-s", "-screen 0 1280x800x24"])
+        .arg(env!("CARGO_BIN_EXE_openrt-viewer"))
+        .arg(&scene)
+        .args(["--frames", "4", "--threads", "2", "--screenshot"])
+        .arg(&out)
+        .env("LIBGL_ALWAYS_SOFTWARE", "1")
+        .env("OPENRT_BART_DIR", &bart)
+        .status()
+        .expect("running the viewer");
+    assert!(status.success(), "viewer exited with {status}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.with_extension("json")).expect("report")).expect("JSON");
+    assert!(report["frames_rendered"].as_u64().unwrap() >= 4, "{report}");
+    let overlay = report["overlay"].as_str().unwrap();
+    assert!(
+        overlay.contains("frames rendered") && overlay.contains("Mrays/s") && overlay.contains("110520 triangles"),
+        "{overlay}"
+    );
+
+    let img = image::open(&out).expect("screenshot").to_rgb8();
+    let (w, h) = img.dimensions();
+    assert!(w >= 800 && h >= 500, "window {w}x{h}");
+    // The right part of the window holds the rendered frame: it must be
+    // colourful, not a blank or black image.
+    let mut colours = std::collections::HashSet::new();
+    let mut bright = 0usize;
+    let mut total = 0usize;
+    for y in (h / 4..h * 3 / 4).step_by(3) {
+        for x in (w / 2..w * 9 / 10).step_by(3) {
+            let p = img.get_pixel(x, y).0;
+            colours.insert(p.map(|c| c / 8));
+            bright += usize::from(p.iter().map(|&c| u32::from(c)).sum::<u32>() > 120);
+            total += 1;
+        }
+    }
+    assert!(
+        colours.len() > 200,
+        "only {} colours: not a rendered frame",
+        colours.len()
+    );
+    assert!(bright * 2 > total, "mostly dark: {bright}/{total}");
+    let _ = std::fs::remove_file(&out);
+    let _ = std::fs::remove_file(out.with_extension("json"));
+}
