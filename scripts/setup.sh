@@ -7,7 +7,7 @@ if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # Debian packages: a C toolchain for -sys crates; Xvfb, Mesa's software OpenGL
 # and the X libraries winit opens, for the viewer and its smoke test.
 pkgs=(build-essential pkg-config xvfb xauth libgl1-mesa-dri libglx-mesa0 libegl1 libegl-mesa0
-  libxkbcommon-x11-0 libxcursor1 libxrandr2 libxi6 libx11-xcb1)
+  libxkbcommon-x11-0 libxcursor1 libxrandr2 libxi6 libx11-xcb1 fonts-dejavu-core)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

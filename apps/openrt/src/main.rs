@@ -10,6 +10,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+mod bench;
+
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use openrt_accel::BuilderKind;
@@ -71,6 +73,31 @@ enum Command {
         /// Scene time of an animated scene.
         #[arg(long)]
         time: Option<f32>,
+    },
+    /// Measures the paper's table, speed against error and builder trade-offs; writes docs/BENCHMARKS.md.
+    Bench {
+        /// Scenes (names in scenes/ or files), comma-separated; the first is used for speed against error.
+        #[arg(
+            long,
+            default_value = "kitchen,museum1k,museum4k,museum16k,terrain",
+            value_delimiter = ','
+        )]
+        scenes: Vec<String>,
+        /// Frames sampled across each animation.
+        #[arg(long, default_value_t = 5)]
+        frames: usize,
+        /// Image width.
+        #[arg(long, default_value_t = 640)]
+        width: u32,
+        /// Image height.
+        #[arg(long, default_value_t = 480)]
+        height: u32,
+        /// Thread counts, comma-separated (default: 1 and all cores).
+        #[arg(long, value_delimiter = ',')]
+        threads: Option<Vec<usize>>,
+        /// Report file.
+        #[arg(short, long, default_value = "docs/BENCHMARKS.md")]
+        output: PathBuf,
     },
     /// Plays an animation headless, writing frames and per-frame statistics.
     Play {
@@ -191,6 +218,35 @@ fn run(cli: Cli) -> Result<(), String> {
                 scene.instanced_triangles()
             );
             Ok(())
+        }
+        Command::Bench {
+            scenes,
+            frames,
+            width,
+            height,
+            threads,
+            output,
+        } => {
+            let all = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+            let mut threads = threads.unwrap_or_else(|| vec![1, all]);
+            threads.sort_unstable();
+            threads.dedup();
+            if threads.contains(&0) || frames == 0 || width < 4 || height < 4 {
+                return Err("bench: threads and frames must be at least 1, the image at least 4x4".into());
+            }
+            let command = std::env::args()
+                .map(|a| if a.contains(' ') { format!("'{a}'") } else { a })
+                .collect::<Vec<_>>()
+                .join(" ");
+            bench::run(&bench::BenchOptions {
+                scenes,
+                frames,
+                width,
+                height,
+                threads,
+                out: output,
+                command,
+            })
         }
         Command::Play {
             scene,

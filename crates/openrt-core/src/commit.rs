@@ -104,6 +104,7 @@ impl Context {
         }
         let mut stats = CommitStats::default();
         let promote_after = self.promote_after;
+        let redefinition_builder = self.redefinition_builder;
 
         for (index, slot) in self.objects.iter_mut().enumerate() {
             if !slot.alive {
@@ -115,7 +116,7 @@ impl Context {
             };
             if let Some(mesh) = slot.pending.take() {
                 let builder = if slot.geometry.is_some() {
-                    BuilderKind::Fast
+                    redefinition_builder
                 } else {
                     BuilderKind::Sah
                 };

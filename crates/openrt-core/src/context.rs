@@ -91,6 +91,7 @@ pub struct Context {
     pub(crate) frame: u64,
     pub(crate) scene: Arc<Scene>,
     pub(crate) promote_after: Option<u32>,
+    pub(crate) redefinition_builder: openrt_accel::BuilderKind,
 }
 
 impl Default for Context {
@@ -118,6 +119,7 @@ impl Context {
             frame: 0,
             scene: Arc::new(Scene::default()),
             promote_after: Some(3),
+            redefinition_builder: openrt_accel::BuilderKind::Fast,
         }
     }
 
@@ -125,6 +127,13 @@ impl Context {
     /// builder gets an SAH tree built in the background (`None`: never).
     pub fn set_promote_after(&mut self, commits: Option<u32>) {
         self.promote_after = commits;
+    }
+
+    /// The builder for redefined objects: [`BuilderKind::Fast`](openrt_accel::BuilderKind::Fast)
+    /// (the paper's choice for unstructured motion, the default) or SAH (to
+    /// measure the trade-off).
+    pub fn set_redefinition_builder(&mut self, builder: openrt_accel::BuilderKind) {
+        self.redefinition_builder = builder;
     }
 
     /// The scene of the last commit.
