@@ -291,6 +291,101 @@ fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(), String
     Ok(())
 }
 
+/// The same frames and primary rays through an Embree two-level scene:
+/// per-frame rebuild time and single-ray throughput, one thread each.
+#[cfg(feature = "embree")]
+fn embree_side_by_side(o: &BenchOptions, name: &str, out: &mut String) -> Result<(), String> {
+    use std::sync::Arc;
+
+    use openrt_accel::EmbreeTwoLevel;
+    let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+    player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
+    // Objects rebuilt between two frames move without structure.
+    let moving: Vec<_> = player
+        .set_time(player.time_of(1))
+        .map_err(|e| e.to_string())?
+        .builds
+        .iter()
+        .map(|b| b.object)
+        .collect();
+    let scene = player.ctx().scene();
+    let mut objects: Vec<Arc<openrt_core::ObjectGeometry>> = Vec::new();
+    let mut object_ids = Vec::new();
+    let mut inst = Vec::new();
+    for i in scene.instances() {
+        let k = objects
+            .iter()
+            .position(|g| Arc::ptr_eq(g, &i.geometry))
+            .unwrap_or_else(|| {
+                objects.push(Arc::clone(&i.geometry));
+                object_ids.push(i.object);
+                objects.len() - 1
+            });
+        inst.push((k, glam::Mat4::from(i.to_world).to_cols_array()));
+    }
+    let descs: Vec<(&[openrt_accel::Triangle], bool)> = objects
+        .iter()
+        .zip(&object_ids)
+        .map(|(g, id)| (g.tree.triangles(), moving.contains(id)))
+        .collect();
+    let mut emb = EmbreeTwoLevel::new(&descs, &inst)?;
+    let (mut ours_c, mut emb_c, mut ours_r, mut emb_r) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut n_rays = 0;
+    for k in 0..o.frames {
+        let f = ((k + 1) * player.frames() as usize / (o.frames + 1)) as u32;
+        let t = player.time_of(f);
+        let c = player.set_time(t).map_err(|e| e.to_string())?;
+        ours_c.push(c.total_ms);
+        let scene = player.ctx().scene();
+        let transforms: Vec<[f32; 16]> = scene
+            .instances()
+            .iter()
+            .map(|i| glam::Mat4::from(i.to_world).to_cols_array())
+            .collect();
+        let redefined: Vec<(usize, &[openrt_accel::Triangle])> = c
+            .builds
+            .iter()
+            .filter_map(|b| {
+                let k = object_ids.iter().position(|id| *id == b.object)?;
+                let g = scene.instances().iter().find(|i| i.object == b.object)?;
+                Some((k, g.geometry.tree.triangles()))
+            })
+            .collect();
+        let t0 = Instant::now();
+        emb.update(&transforms, &redefined)?;
+        emb_c.push(t0.elapsed().as_secs_f64() * 1e3);
+        let cam = player.camera(t).rays(o.width, o.height).map_err(|e| e.to_string())?;
+        let rays: Vec<_> = (0..o.height)
+            .flat_map(|y| (0..o.width).map(move |x| (x, y)))
+            .map(|(x, y)| cam.ray(x, y))
+            .collect();
+        n_rays = rays.len();
+        let t0 = Instant::now();
+        let a = rays.iter().filter(|r| scene.intersect(r).is_some()).count();
+        ours_r.push(t0.elapsed().as_secs_f64());
+        let t0 = Instant::now();
+        let b = rays.iter().filter(|r| emb.intersect(r).is_some()).count();
+        emb_r.push(t0.elapsed().as_secs_f64());
+        if a.abs_diff(b) * 100 > rays.len() {
+            return Err(format!(
+                "{name}: OpenRT-rs hits {a} rays, Embree {b}: the scenes differ"
+            ));
+        }
+    }
+    let (oc, ec) = (median(ours_c), median(emb_c));
+    let (orr, er) = (
+        n_rays as f64 / median(ours_r) / 1e6,
+        n_rays as f64 / median(emb_r) / 1e6,
+    );
+    let _ = writeln!(
+        out,
+        "| {name} | {oc:.2} | {ec:.2} | {:.2} | {orr:.2} | {er:.2} | {:.2} |",
+        ec / oc.max(1e-9),
+        orr / er
+    );
+    Ok(())
+}
+
 fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
     use plotters::prelude::*;
     let font = ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"]
@@ -483,6 +578,21 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
             "\n### Fast vs SAH trees for the moving triangles ({name})\n\nSame geometry, so the same image (error 0); the cost moves between commit and render:"
         );
         builders(o, name, &mut md)?;
+    }
+    #[cfg(feature = "embree")]
+    {
+        let _ = writeln!(
+            md,
+            "\n## Side by side with Embree 3 (two-level, single rays, 1 thread)\n\nSame frames, same primary rays; Embree: one scene per object (HIGH quality, LOW for objects rebuilt every frame) instanced in a top-level scene updated per frame.\n\n| scene | OpenRT-rs commit ms | Embree update ms | commit ratio (Embree/ours) | OpenRT-rs Mrays/s | Embree Mrays/s | throughput ratio (ours/Embree) |\n|---|---:|---:|---:|---:|---:|---:|"
+        );
+        for s in o
+            .scenes
+            .iter()
+            .filter(|s| s.as_str() == "kitchen" || s.starts_with("museum"))
+        {
+            eprintln!("bench: embree on {s}");
+            embree_side_by_side(o, s, &mut md)?;
+        }
     }
     let svg = o.out.with_file_name("bench-speed-error.svg");
     match plot(&svg, &q) {

@@ -46,7 +46,7 @@ pub mod oracle;
 
 pub use aabb::Aabb;
 #[cfg(feature = "embree")]
-pub use embree_peer::EmbreeMesh;
+pub use embree_peer::{EmbreeMesh, EmbreeTwoLevel};
 pub use error::AccelError;
 pub use fast_build::FastParams;
 pub use hit::Hit;
