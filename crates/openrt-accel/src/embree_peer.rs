@@ -19,31 +19,7 @@ impl EmbreeMesh {
     /// (`high` for static objects, `false` for Embree's LOW quality used for moving ones).
     pub fn new(tris: &[Triangle], high_quality: bool) -> Result<Self, String> {
         let device = Device::new().map_err(|e| format!("embree device: {e:?}"))?;
-        let mut scene = device.create_scene().map_err(|e| format!("embree scene: {e:?}"))?;
-        let mut geom = device
-            .create_geometry(GeometryKind::TRIANGLE)
-            .map_err(|e| format!("embree geometry: {e:?}"))?;
-        let verts: Vec<[f32; 3]> = tris.iter().flat_map(|t| t.map(|v| v.to_array())).collect();
-        let idx: Vec<[u32; 3]> = (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
-        geom.set_new_buffer::<[f32; 3]>(BufferUsage::VERTEX, 0, Format::FLOAT3, 12, verts.len())
-            .map_err(|e| format!("embree vertex buffer: {e:?}"))?
-            .copy_from_slice(&verts);
-        geom.set_new_buffer::<[u32; 3]>(BufferUsage::INDEX, 0, Format::UINT3, 12, idx.len())
-            .map_err(|e| format!("embree index buffer: {e:?}"))?
-            .copy_from_slice(&idx);
-        geom.set_build_quality(if high_quality {
-            BuildQuality::HIGH
-        } else {
-            BuildQuality::LOW
-        });
-        let geom = geom.commit();
-        scene.set_build_quality(if high_quality {
-            BuildQuality::HIGH
-        } else {
-            BuildQuality::LOW
-        });
-        scene.attach_geometry(&geom);
-        scene.commit();
+        let scene = mesh_scene(&device, tris, high_quality)?;
         Ok(Self { scene, _device: device })
     }
 

@@ -104,7 +104,7 @@ impl Shader<'_> {
         let scene = self.scene;
         let mut ray = *ray;
         let mut passes = 0;
-        let (hit, surf) = loop {
+        let surf = loop {
             let Some(hit) = scene.intersect(&ray) else {
                 return self.env.background;
             };
@@ -117,9 +117,8 @@ impl Shader<'_> {
                 ray = Ray::new(o, ray.dir, 0.0, f32::INFINITY);
                 continue;
             }
-            break (hit, surf);
+            break surf;
         };
-        let _ = hit;
         let mat = &scene.materials()[surf.material.index() as usize];
         let d = ray.dir.normalize();
         // Normals facing the incoming ray.

@@ -71,34 +71,49 @@ pub fn animart(n: usize, seed: u64, material: usize) -> Vec<AnimatedTriangle> {
     out
 }
 
+/// Seeded fractal value noise of the terrain (five octaves of sine waves).
+struct TerrainNoise {
+    octaves: Vec<(f32, f32, f32, f32)>,
+    size: f32,
+    height: f32,
+}
+
+impl TerrainNoise {
+    fn new(size: f32, height: f32, seed: u64) -> Self {
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let octaves = (0..5)
+            .map(|o| {
+                let f = 2f32.powi(o) * 1.5;
+                (
+                    f,
+                    0.5f32.powi(o),
+                    rng.random_range(0.0..6.3),
+                    rng.random_range(0.0..6.3),
+                )
+            })
+            .collect();
+        Self { octaves, size, height }
+    }
+
+    fn at(&self, x: f32, z: f32) -> f32 {
+        let (u, v) = (x / self.size, z / self.size);
+        self.octaves
+            .iter()
+            .map(|&(f, a, p, q)| a * ((u * f * 6.3 + p).sin() * (v * f * 5.1 + q).cos()))
+            .sum::<f32>()
+            * self.height
+    }
+}
+
 /// A heightfield of `grid` x `grid` cells over `[-size/2, size/2]^2`
 /// (fractal value noise, seeded), two triangles per cell.
 #[must_use]
 pub fn heightfield(grid: usize, size: f32, height: f32, seed: u64) -> Vec<Triangle> {
-    let mut rng = SmallRng::seed_from_u64(seed);
-    let octaves: Vec<(f32, f32, f32, f32)> = (0..5)
-        .map(|o| {
-            let f = 2f32.powi(o) * 1.5;
-            (
-                f,
-                0.5f32.powi(o),
-                rng.random_range(0.0..6.3),
-                rng.random_range(0.0..6.3),
-            )
-        })
-        .collect();
-    let h = |x: f32, z: f32| {
-        let (u, v) = (x / size, z / size);
-        octaves
-            .iter()
-            .map(|&(f, a, p, q)| a * ((u * f * 6.3 + p).sin() * (v * f * 5.1 + q).cos()))
-            .sum::<f32>()
-            * height
-    };
+    let noise = TerrainNoise::new(size, height, seed);
     let p = |i: usize, j: usize| {
         let x = -size / 2.0 + size * i as f32 / grid as f32;
         let z = -size / 2.0 + size * j as f32 / grid as f32;
-        Vec3::new(x, h(x, z), z)
+        Vec3::new(x, noise.at(x, z), z)
     };
     let mut tris = Vec::with_capacity(2 * grid * grid);
     for i in 0..grid {
@@ -111,27 +126,10 @@ pub fn heightfield(grid: usize, size: f32, height: f32, seed: u64) -> Vec<Triang
     tris
 }
 
-/// Height of the heightfield under `(x, z)` (same function as [`heightfield`]).
+/// Height of the heightfield under `(x, z)` (same surface as [`heightfield`]).
 #[must_use]
 pub fn terrain_height(x: f32, z: f32, size: f32, height: f32, seed: u64) -> f32 {
-    let mut rng = SmallRng::seed_from_u64(seed);
-    let octaves: Vec<(f32, f32, f32, f32)> = (0..5)
-        .map(|o| {
-            let f = 2f32.powi(o) * 1.5;
-            (
-                f,
-                0.5f32.powi(o),
-                rng.random_range(0.0..6.3),
-                rng.random_range(0.0..6.3),
-            )
-        })
-        .collect();
-    let (u, v) = (x / size, z / size);
-    octaves
-        .iter()
-        .map(|&(f, a, p, q)| a * ((u * f * 6.3 + p).sin() * (v * f * 5.1 + q).cos()))
-        .sum::<f32>()
-        * height
+    TerrainNoise::new(size, height, seed).at(x, z)
 }
 
 /// A tree of about `target` triangles with its base at the origin, height

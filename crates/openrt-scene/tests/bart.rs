@@ -5,6 +5,8 @@
 //! from the repository root). Without it these tests fail when `CI` is set
 //! and are skipped with a printed reason otherwise.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use openrt_accel::BuilderKind;
@@ -78,33 +80,6 @@ fn kitchen_and_museum5_have_the_documented_counts() {
     assert_eq!(m.animation.unwrap().frames, 300);
 }
 
-/// Same comparison as the shipped-scene goldens (see scenes.rs).
-fn check_golden(name: &str, img: &openrt_core::Image) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/golden")
-        .join(format!("{name}.png"));
-    if std::env::var_os("OPENRT_BLESS").is_some() {
-        image::save_buffer(&path, &img.to_rgb8(), img.width, img.height, image::ColorType::Rgb8).unwrap();
-        return;
-    }
-    let golden = image::open(&path)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .to_rgb8();
-    let bytes = img.to_rgb8();
-    let (mut se, mut off) = (0.0f64, 0usize);
-    for (a, b) in golden.as_raw().chunks(3).zip(bytes.chunks(3)) {
-        let d: Vec<i32> = a.iter().zip(b).map(|(&x, &y)| i32::from(x) - i32::from(y)).collect();
-        se += d.iter().map(|&v| f64::from(v * v)).sum::<f64>() / 3.0;
-        off += usize::from(d.iter().any(|v| v.abs() > 8));
-    }
-    let n = f64::from(img.width * img.height);
-    let rmse = (se / n).sqrt();
-    assert!(
-        rmse < 1.5 && (off as f64) < 0.01 * n,
-        "{name}: RMSE {rmse:.3}/255, {off} pixels off"
-    );
-}
-
 fn frame(player: &mut AffPlayer, f: u32) -> openrt_core::Image {
     let t = player.time_of(f);
     player.set_time(t).unwrap();
@@ -124,9 +99,9 @@ fn frame(player: &mut AffPlayer, f: u32) -> openrt_core::Image {
 fn kitchen_frame_0_and_museum_frame_200_match_their_goldens() {
     let Some(dir) = bart() else { return };
     let mut k = AffPlayer::load(&dir.join("kitchen/kitchen.aff")).unwrap();
-    check_golden("kitchen-f0", &frame(&mut k, 0));
+    common::check_golden("kitchen-f0", &frame(&mut k, 0), 1.5, 0.01);
     let mut m = AffPlayer::load(&dir.join("museum/museum5.aff")).unwrap();
-    check_golden("museum5-f200", &frame(&mut m, 200));
+    common::check_golden("museum5-f200", &frame(&mut m, 200), 1.5, 0.01);
 }
 
 #[test]

@@ -6,6 +6,8 @@
 
 use std::path::{Path, PathBuf};
 
+mod common;
+
 use openrt_core::{Image, RenderMode, RenderSettings, Renderer};
 use openrt_scene::{SceneError, load_ron, load_ron_str};
 
@@ -27,44 +29,12 @@ fn render(scene: &Path, mode: RenderMode) -> Image {
         .0
 }
 
-/// Compares with the golden PNG: RMSE below 1/255 and at most 0.5% of
-/// pixels off by more than 8/255 in some channel.
-fn check_golden(name: &str, img: &Image) {
-    let path = repo().join("tests/golden").join(format!("{name}.png"));
-    if std::env::var_os("OPENRT_BLESS").is_some() {
-        image::save_buffer(&path, &img.to_rgb8(), img.width, img.height, image::ColorType::Rgb8).unwrap();
-        return;
-    }
-    compare_golden(name, img);
-}
-
-fn compare_golden(name: &str, img: &Image) {
-    let path = repo().join("tests/golden").join(format!("{name}.png"));
-    let bytes = img.to_rgb8();
-    let golden = image::open(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (bless with OPENRT_BLESS=1)", path.display()))
-        .to_rgb8();
-    assert_eq!(golden.dimensions(), (img.width, img.height), "{name}: size");
-    let (mut se, mut off) = (0.0f64, 0usize);
-    for (a, b) in golden.as_raw().chunks(3).zip(bytes.chunks(3)) {
-        let d: Vec<i32> = a.iter().zip(b).map(|(&x, &y)| i32::from(x) - i32::from(y)).collect();
-        se += d.iter().map(|&v| f64::from(v * v)).sum::<f64>() / 3.0;
-        off += usize::from(d.iter().any(|v| v.abs() > 8));
-    }
-    let n = f64::from(img.width * img.height);
-    let rmse = (se / n).sqrt();
-    assert!(
-        rmse < 1.0 && (off as f64) < 0.005 * n,
-        "{name}: RMSE {rmse:.3}/255, {off} pixels off"
-    );
-}
-
 #[test]
 fn shipped_scenes_match_their_golden_images() {
     for scene in ["room", "slab", "textured"] {
         for (mode, tag) in [(RenderMode::GlLike, "gl"), (RenderMode::Whitted, "whitted")] {
             let img = render(&repo().join(format!("scenes/{scene}.ron")), mode);
-            check_golden(&format!("{scene}-{tag}"), &img);
+            common::check_golden(&format!("{scene}-{tag}"), &img, 1.0, 0.005);
         }
     }
 }
@@ -75,7 +45,7 @@ fn the_golden_check_catches_a_changed_image() {
     for p in img.pixels.iter_mut().take(2000) {
         *p = glam::Vec3::ONE - *p;
     }
-    let r = std::panic::catch_unwind(|| compare_golden("room-gl", &img));
+    let r = std::panic::catch_unwind(|| common::compare_golden("room-gl", &img, 1.0, 0.005));
     assert!(r.is_err());
 }
 

@@ -188,10 +188,10 @@ impl Parser {
 
     fn light(&mut self, tok: &Token) -> Result<(), SceneError> {
         let p = self.ts.vec3("light position")?;
-        let last = self.ts.peek().cloned();
-        let color = match last {
-            Some(_) if self.ts.number_follows_on_line(tok) => self.ts.vec3("light colour")?,
-            _ => Vec3::ONE,
+        let color = if self.ts.number_follows_on_line(tok) {
+            self.ts.vec3("light colour")?
+        } else {
+            Vec3::ONE
         };
         let m = *self.xform.last().expect("transform stack");
         self.scene.lights.push(PointLight {
@@ -446,7 +446,6 @@ impl Parser {
                     let n = self.ts.count("triangle count", MAX_COUNT)?;
                     let material = self.material(texture);
                     for _ in 0..n {
-                        let first = self.ts.peek().cloned();
                         let mut idx = |what: &str, len: usize| -> Result<[usize; 3], SceneError> {
                             let mut out = [0usize; 3];
                             for o in &mut out {
@@ -470,7 +469,6 @@ impl Parser {
                             Some(ts) => Some(idx("texture coordinate index", ts.len())?),
                             None => None,
                         };
-                        let _ = first;
                         let tri = vi.map(|i| vertices[i]);
                         let n = ni.map(|ni| ni.map(|i| normals.as_ref().expect("normals")[i]));
                         let uv = ti.map(|ti| ti.map(|i| uvs.as_ref().expect("uvs")[i]));
