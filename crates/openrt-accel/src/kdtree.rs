@@ -9,6 +9,10 @@ use crate::traverse::traverse;
 use crate::triangle::{intersect_triangle, is_valid_triangle};
 use crate::{Aabb, AccelError, Hit, Ray, Triangle};
 
+/// Largest tree validated automatically after its build in debug-assertion builds.
+#[cfg(debug_assertions)]
+const DEBUG_VALIDATE_LIMIT: usize = 20_000;
+
 /// Which builder made a tree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum BuilderKind {
@@ -119,13 +123,22 @@ impl KdTree {
             depth,
             build_ms: start.elapsed().as_secs_f64() * 1e3,
         };
-        Self {
+        let tree = Self {
             nodes,
             prim_ids,
             tris,
             bounds,
             stats,
+        };
+        // NOTE: every build in a debug-assertion build (all tests) is checked,
+        // up to a size where the O(N depth) check stays cheap.
+        #[cfg(debug_assertions)]
+        if tree.tris.len() <= DEBUG_VALIDATE_LIMIT
+            && let Err(e) = tree.validate()
+        {
+            panic!("{builder:?} build produced an invalid tree: {e}");
         }
+        tree
     }
 
     /// Bounds of the valid triangles (the root cell).

@@ -54,6 +54,13 @@ impl InstanceBsp {
         } else {
             b.node(bounds, items, 0, max_depth)?;
         }
+        // NOTE: checked after every build in debug-assertion builds (all tests), up to a size.
+        #[cfg(debug_assertions)]
+        if boxes.len() <= 2_000
+            && let Err(e) = b.validate(boxes)
+        {
+            panic!("instance BSP build produced an invalid tree: {e}");
+        }
         Ok(b)
     }
 
