@@ -30,7 +30,13 @@ pub struct FastParams {
     pub traversal_cost: f32,
     /// Cost of one ray/triangle test.
     pub intersection_cost: f32,
+    /// Build the top levels' subtrees on several threads (one level per
+    /// doubling of the available cores).
+    pub parallel: bool,
 }
+
+/// Smallest node built in parallel.
+const PARALLEL_MIN: usize = 4096;
 
 impl Default for FastParams {
     fn default() -> Self {
@@ -41,6 +47,7 @@ impl Default for FastParams {
             depth_factor: 0.75,
             traversal_cost: 1.0,
             intersection_cost: 0.5,
+            parallel: true,
         }
     }
 }
@@ -72,7 +79,13 @@ pub(crate) fn build_fast(tris: &[Triangle], valid: &[bool], params: &FastParams)
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
-        b.node(bounds, items, 0)?;
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        let levels = if params.parallel {
+            cores.next_power_of_two().trailing_zeros()
+        } else {
+            0
+        };
+        b.node_parallel(bounds, items, 0, levels)?;
     }
     Ok(BuiltTree {
         nodes: b.nodes,
@@ -103,27 +116,28 @@ impl Fast {
         Ok(())
     }
 
-    fn node(&mut self, cell: Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<(), AccelError> {
-        self.depth_reached = self.depth_reached.max(depth);
+    /// The split of a node: `None` makes a leaf.
+    fn plan(&self, cell: &Aabb, items: &[(u32, Aabb)], depth: usize) -> Option<(usize, f32)> {
         let n = items.len();
         let p = self.params;
         let max_leaf = p.min_leaf * p.leaf_growth.powi(depth as i32);
         if n as f32 <= max_leaf || depth >= self.max_depth {
-            return self.leaf(&items);
+            return None;
         }
         let axis = cell.longest_axis();
         let (lo, ext) = (cell.min[axis], cell.extent()[axis]);
         let sa = cell.surface_area();
         if ext <= 0.0 || sa.is_nan() || sa <= 0.0 {
-            return self.leaf(&items);
+            return None;
         }
         // Bin the box starts and ends.
         let nb = p.bins.max(2);
-        let mut starts = vec![0u32; nb];
-        let mut ends = vec![0u32; nb];
+        let mut starts = [0u32; 64];
+        let mut ends = [0u32; 64];
+        let nb = nb.min(starts.len());
         let scale = nb as f32 / ext;
         let bin = |x: f32| (((x - lo) * scale) as usize).min(nb - 1);
-        for (_, b) in &items {
+        for (_, b) in items {
             starts[bin(b.min[axis])] += 1;
             ends[bin(b.max[axis])] += 1;
         }
@@ -145,33 +159,57 @@ impl Fast {
             }
         }
         if best.0 >= p.intersection_cost * n as f32 {
-            return self.leaf(&items);
+            return None;
         }
         let split = lo + ext * best.1 as f32 / nb as f32;
         if split <= cell.min[axis] || split >= cell.max[axis] {
-            return self.leaf(&items);
+            return None;
         }
-        let mut lcell = cell;
+        Some((axis, split))
+    }
+
+    /// Children cells and item lists; `None` when every item straddles.
+    #[allow(clippy::type_complexity)]
+    fn partition(
+        cell: &Aabb,
+        items: Vec<(u32, Aabb)>,
+        axis: usize,
+        split: f32,
+    ) -> Result<(Aabb, Vec<(u32, Aabb)>, Aabb, Vec<(u32, Aabb)>), Vec<(u32, Aabb)>> {
+        let n = items.len();
+        let mut lcell = *cell;
         lcell.max[axis] = split;
-        let mut rcell = cell;
+        let mut rcell = *cell;
         rcell.min[axis] = split;
         let mut left = Vec::with_capacity(n / 2 + 1);
         let mut right = Vec::with_capacity(n / 2 + 1);
-        for (id, b) in items {
+        let mut both = 0usize;
+        for (id, b) in &items {
             if b.max[axis] <= split {
-                left.push((id, b));
+                left.push((*id, *b));
             } else if b.min[axis] >= split {
-                right.push((id, b));
+                right.push((*id, *b));
             } else {
-                left.push((id, b.intersection(lcell)));
-                right.push((id, b.intersection(rcell)));
+                left.push((*id, b.intersection(lcell)));
+                right.push((*id, b.intersection(rcell)));
+                both += 1;
             }
         }
-        if left.len() == n && right.len() == n {
-            let mut all = left;
-            all.truncate(n);
-            return self.leaf(&all);
+        if both == n {
+            return Err(items);
         }
+        Ok((lcell, left, rcell, right))
+    }
+
+    fn node(&mut self, cell: Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<(), AccelError> {
+        self.depth_reached = self.depth_reached.max(depth);
+        let Some((axis, split)) = self.plan(&cell, &items, depth) else {
+            return self.leaf(&items);
+        };
+        let (lcell, left, rcell, right) = match Self::partition(&cell, items, axis, split) {
+            Ok(parts) => parts,
+            Err(items) => return self.leaf(&items),
+        };
         let index = self.nodes.len();
         if index >= MAX_FIELD as usize {
             return Err(AccelError::TooManyNodes {
@@ -183,5 +221,68 @@ impl Fast {
         let above = self.nodes.len() as u32;
         self.nodes[index].set_above_child(above);
         self.node(rcell, right, depth + 1)
+    }
+
+    /// Like [`Self::node`], building the two children on two threads for
+    /// `levels` levels when the node is large (the commit runs while the
+    /// render threads wait, so the cores are free).
+    fn node_parallel(
+        &mut self,
+        cell: Aabb,
+        items: Vec<(u32, Aabb)>,
+        depth: usize,
+        levels: u32,
+    ) -> Result<(), AccelError> {
+        if levels == 0 || items.len() < PARALLEL_MIN {
+            return self.node(cell, items, depth);
+        }
+        self.depth_reached = self.depth_reached.max(depth);
+        let Some((axis, split)) = self.plan(&cell, &items, depth) else {
+            return self.leaf(&items);
+        };
+        let (lcell, left, rcell, right) = match Self::partition(&cell, items, axis, split) {
+            Ok(parts) => parts,
+            Err(items) => return self.leaf(&items),
+        };
+        let sub = || Fast {
+            params: self.params,
+            nodes: Vec::new(),
+            prim_ids: Vec::new(),
+            max_depth: self.max_depth,
+            depth_reached: 0,
+        };
+        let (mut lb, mut rb) = (sub(), sub());
+        let (lr, rr) = std::thread::scope(|s| {
+            let h = s.spawn(|| lb.node_parallel(lcell, left, depth + 1, levels - 1));
+            let r = rb.node_parallel(rcell, right, depth + 1, levels - 1);
+            (
+                h.join()
+                    .unwrap_or(Err(AccelError::Invalid("parallel build panicked".into()))),
+                r,
+            )
+        });
+        lr?;
+        rr?;
+        // Stitch: this node, the left subtree right after it, then the right subtree.
+        let too_many = || AccelError::TooManyNodes {
+            limit: MAX_FIELD as usize,
+        };
+        let index = self.nodes.len();
+        let left_at = u32::try_from(index + 1).map_err(|_| too_many())?;
+        let left_prims = u32::try_from(self.prim_ids.len()).map_err(|_| too_many())?;
+        self.nodes.push(KdNode::interior(axis, split));
+        for n in &lb.nodes {
+            self.nodes.push(n.shifted(left_at, left_prims).ok_or_else(too_many)?);
+        }
+        self.prim_ids.extend_from_slice(&lb.prim_ids);
+        let right_at = u32::try_from(self.nodes.len()).map_err(|_| too_many())?;
+        let right_prims = u32::try_from(self.prim_ids.len()).map_err(|_| too_many())?;
+        self.nodes[index].set_above_child(right_at);
+        for n in &rb.nodes {
+            self.nodes.push(n.shifted(right_at, right_prims).ok_or_else(too_many)?);
+        }
+        self.prim_ids.extend_from_slice(&rb.prim_ids);
+        self.depth_reached = self.depth_reached.max(lb.depth_reached).max(rb.depth_reached);
+        Ok(())
     }
 }

@@ -51,6 +51,26 @@ impl KdNode {
         self.b = (self.b & 3) | (index << 2);
     }
 
+    /// The node moved into a larger array: child indices grow by
+    /// `node_offset`, leaf list offsets by `prim_offset`.
+    pub(crate) fn shifted(self, node_offset: u32, prim_offset: u32) -> Option<Self> {
+        if self.is_leaf() {
+            Some(Self {
+                a: self.a.checked_add(prim_offset)?,
+                b: self.b,
+            })
+        } else {
+            let above = self
+                .above_child()
+                .checked_add(node_offset)
+                .filter(|&a| a <= MAX_FIELD)?;
+            Some(Self {
+                a: self.a,
+                b: (self.b & 3) | (above << 2),
+            })
+        }
+    }
+
     /// `true` for a leaf.
     #[inline]
     #[must_use]

@@ -165,6 +165,16 @@ impl KdTree {
         &self.nodes
     }
 
+    /// The triangle indices of a leaf node (empty for interior nodes).
+    #[must_use]
+    pub fn leaf_primitives(&self, leaf: KdNode) -> &[u32] {
+        if !leaf.is_leaf() {
+            return &[];
+        }
+        let off = leaf.prim_offset() as usize;
+        self.prim_ids.get(off..off + leaf.prim_count() as usize).unwrap_or(&[])
+    }
+
     /// The closest hit in `(ray.t_min, ray.t_max)`.
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {

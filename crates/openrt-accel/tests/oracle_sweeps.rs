@@ -143,3 +143,30 @@ fn fast_builder_trees_match_the_oracle() {
         }
     }
 }
+
+#[test]
+fn the_parallel_fast_build_equals_the_serial_one() {
+    let b = Aabb::new(Vec3::splat(-2.0), Vec3::splat(2.0));
+    let tris = meshgen::random_soup(20_000, 11, b, 0.05);
+    let par = KdTree::build_fast_with(
+        tris.clone(),
+        &openrt_accel::FastParams {
+            parallel: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let ser = KdTree::build_fast_with(
+        tris,
+        &openrt_accel::FastParams {
+            parallel: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(par.nodes(), ser.nodes());
+    for n in par.nodes() {
+        assert_eq!(par.leaf_primitives(*n), ser.leaf_primitives(*n));
+    }
+    assert_eq!(par.stats().depth, ser.stats().depth);
+}
