@@ -95,6 +95,16 @@ pub(crate) fn build_fast(tris: &[Triangle], valid: &[bool], params: &FastParams)
     })
 }
 
+/// A planned split with its children.
+struct Split {
+    axis: usize,
+    position: f32,
+    lcell: Aabb,
+    left: Vec<(u32, Aabb)>,
+    rcell: Aabb,
+    right: Vec<(u32, Aabb)>,
+}
+
 struct Fast {
     params: FastParams,
     nodes: Vec<KdNode>,
@@ -201,14 +211,36 @@ impl Fast {
         Ok((lcell, left, rcell, right))
     }
 
-    fn node(&mut self, cell: Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<(), AccelError> {
+    /// Plans and partitions a node; `Ok(None)` when it became a leaf.
+    fn split(&mut self, cell: &Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<Option<Split>, AccelError> {
         self.depth_reached = self.depth_reached.max(depth);
-        let Some((axis, split)) = self.plan(&cell, &items, depth) else {
-            return self.leaf(&items);
+        let Some((axis, split)) = self.plan(cell, &items, depth) else {
+            return self.leaf(&items).map(|()| None);
         };
-        let (lcell, left, rcell, right) = match Self::partition(&cell, items, axis, split) {
-            Ok(parts) => parts,
-            Err(items) => return self.leaf(&items),
+        match Self::partition(cell, items, axis, split) {
+            Ok((lcell, left, rcell, right)) => Ok(Some(Split {
+                axis,
+                position: split,
+                lcell,
+                left,
+                rcell,
+                right,
+            })),
+            Err(items) => self.leaf(&items).map(|()| None),
+        }
+    }
+
+    fn node(&mut self, cell: Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<(), AccelError> {
+        let Some(Split {
+            axis,
+            position: split,
+            lcell,
+            left,
+            rcell,
+            right,
+        }) = self.split(&cell, items, depth)?
+        else {
+            return Ok(());
         };
         let index = self.nodes.len();
         if index >= MAX_FIELD as usize {
@@ -236,13 +268,16 @@ impl Fast {
         if levels == 0 || items.len() < PARALLEL_MIN {
             return self.node(cell, items, depth);
         }
-        self.depth_reached = self.depth_reached.max(depth);
-        let Some((axis, split)) = self.plan(&cell, &items, depth) else {
-            return self.leaf(&items);
-        };
-        let (lcell, left, rcell, right) = match Self::partition(&cell, items, axis, split) {
-            Ok(parts) => parts,
-            Err(items) => return self.leaf(&items),
+        let Some(Split {
+            axis,
+            position: split,
+            lcell,
+            left,
+            rcell,
+            right,
+        }) = self.split(&cell, items, depth)?
+        else {
+            return Ok(());
         };
         let sub = || Fast {
             params: self.params,

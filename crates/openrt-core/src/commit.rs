@@ -149,15 +149,8 @@ impl Context {
             // Collect a finished background build.
             if let Some(Promotion::Running { handle, .. }) = &slot.promotion
                 && handle.is_finished()
-                && let Some(Promotion::Running { version, handle }) = slot.promotion.take()
             {
-                let tree = handle
-                    .join()
-                    .unwrap_or_else(|_| Err(openrt_accel::AccelError::Invalid("background build panicked".into())));
-                slot.promotion = Some(Promotion::Ready {
-                    version,
-                    tree: Box::new(tree),
-                });
+                slot.promotion = slot.promotion.take().map(Promotion::finish);
             }
             match slot.promotion.take() {
                 Some(Promotion::Ready { version, tree }) => {
@@ -239,15 +232,7 @@ impl Context {
     /// next commit swaps them in (for deterministic playback and tests).
     pub fn wait_for_promotions(&mut self) {
         for slot in &mut self.objects {
-            if let Some(Promotion::Running { version, handle }) = slot.promotion.take() {
-                let tree = handle
-                    .join()
-                    .unwrap_or_else(|_| Err(openrt_accel::AccelError::Invalid("background build panicked".into())));
-                slot.promotion = Some(Promotion::Ready {
-                    version,
-                    tree: Box::new(tree),
-                });
-            }
+            slot.promotion = slot.promotion.take().map(Promotion::finish);
         }
     }
 

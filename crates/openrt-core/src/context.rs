@@ -22,6 +22,24 @@ pub(crate) enum Promotion {
     },
 }
 
+impl Promotion {
+    /// Waits for a running build (if needed) and returns it as ready.
+    pub(crate) fn finish(self) -> Self {
+        match self {
+            Self::Running { version, handle } => {
+                let tree = handle
+                    .join()
+                    .unwrap_or_else(|_| Err(openrt_accel::AccelError::Invalid("background build panicked".into())));
+                Self::Ready {
+                    version,
+                    tree: Box::new(tree),
+                }
+            }
+            ready @ Self::Ready { .. } => ready,
+        }
+    }
+}
+
 pub(crate) struct ObjectSlot {
     pub generation: u32,
     pub alive: bool,
