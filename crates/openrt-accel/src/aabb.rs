@@ -93,6 +93,16 @@ impl Aabb {
         (self.min + self.max) * 0.5
     }
 
+    /// Corner `i` of the box (bit 0 selects max x, bit 1 max y, bit 2 max z).
+    #[must_use]
+    pub fn corner(&self, i: usize) -> Vec3 {
+        Vec3::new(
+            if i & 1 == 0 { self.min.x } else { self.max.x },
+            if i & 2 == 0 { self.min.y } else { self.max.y },
+            if i & 4 == 0 { self.min.z } else { self.max.z },
+        )
+    }
+
     /// The axis of largest extent (0, 1 or 2).
     #[must_use]
     pub fn longest_axis(&self) -> usize {

@@ -77,13 +77,8 @@ pub fn grid(nx: usize, ny: usize) -> Vec<Triangle> {
 /// A closed axis-aligned cube `[lo, hi]` of 12 consistently wound triangles.
 #[must_use]
 pub fn cube(lo: Vec3, hi: Vec3) -> Vec<Triangle> {
-    let c = |i: usize| {
-        Vec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        )
-    };
+    let b = Aabb::new(lo, hi);
+    let c = |i: usize| b.corner(i);
     // Faces as outward-wound quads of corner indices.
     let faces = [
         [0, 2, 3, 1],

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use glam::{Affine3A, Mat3, Mat4, Vec3};
+use glam::{Affine3A, Mat3, Mat4};
 use openrt_accel::{Aabb, Ray};
 
 use crate::object::ObjectGeometry;
@@ -44,14 +44,7 @@ impl InstanceRecord {
             Aabb::EMPTY
         } else {
             (0..8)
-                .fold(Aabb::EMPTY, |acc, i| {
-                    let c = Vec3::new(
-                        if i & 1 == 0 { b.min.x } else { b.max.x },
-                        if i & 2 == 0 { b.min.y } else { b.max.y },
-                        if i & 4 == 0 { b.min.z } else { b.max.z },
-                    );
-                    acc.grow(m.transform_point3(c))
-                })
+                .fold(Aabb::EMPTY, |acc, i| acc.grow(m.transform_point3(b.corner(i))))
                 // Transformed corners carry rounding; widen so the box holds the geometry.
                 .enlarged_ulps(4)
         };

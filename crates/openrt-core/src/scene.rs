@@ -113,29 +113,18 @@ impl Scene {
     /// hit so far. Since an instance's hit may lie beyond the current cell,
     /// the walk continues until the next cell starts beyond the closest hit.
     pub fn intersect_counted(&self, ray: &Ray, tests: &mut u32) -> Option<SceneHit> {
-        let (t0, t1) = self.bsp.bounds().clip(ray)?;
         let mut best = None;
-        let mut closest = ray.t_max;
-        let mut mailbox = [u32::MAX; MAILBOX];
-        traverse(self.bsp.nodes(), ray, t0, t1, &mut closest, |leaf, closest| {
-            for &i in self.bsp.leaf_items(leaf) {
-                let slot = &mut mailbox[i as usize % MAILBOX];
-                if *slot == i {
-                    continue;
-                }
-                *slot = i;
-                *tests += 1;
-                let inst = &self.instances[i as usize];
-                let local = inst.ray_to_object(ray, *closest);
-                if let Some(h) = inst.geometry.tree.intersect_within(&local, closest) {
-                    best = Some(SceneHit {
-                        t: h.t,
-                        instance: i,
-                        prim: h.prim,
-                        b1: h.b1,
-                        b2: h.b2,
-                    });
-                }
+        self.walk(ray, |i, inst, closest| {
+            *tests += 1;
+            let local = inst.ray_to_object(ray, *closest);
+            if let Some(h) = inst.geometry.tree.intersect_within(&local, closest) {
+                best = Some(SceneHit {
+                    t: h.t,
+                    instance: i,
+                    prim: h.prim,
+                    b1: h.b1,
+                    b2: h.b2,
+                });
             }
             false
         });
@@ -145,6 +134,20 @@ impl Scene {
     /// `true` when anything is hit in `(ray.t_min, ray.t_max)`.
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
+        self.walk(ray, |_, inst, closest| {
+            inst.geometry.tree.occluded(&inst.ray_to_object(ray, *closest))
+        })
+    }
+
+    /// The two-level walk shared by both queries: clip to the scene box,
+    /// traverse the top-level BSP front to back, and call `test(index,
+    /// instance, closest)` once per instance per ray (mailbox). `test`
+    /// returns `true` to stop; the walk returns whether it was stopped.
+    #[inline]
+    fn walk<F>(&self, ray: &Ray, mut test: F) -> bool
+    where
+        F: FnMut(u32, &InstanceRecord, &mut f32) -> bool,
+    {
         let Some((t0, t1)) = self.bsp.bounds().clip(ray) else {
             return false;
         };
@@ -157,8 +160,7 @@ impl Scene {
                     continue;
                 }
                 *slot = i;
-                let inst = &self.instances[i as usize];
-                if inst.geometry.tree.occluded(&inst.ray_to_object(ray, *closest)) {
+                if test(i, &self.instances[i as usize], closest) {
                     return true;
                 }
             }

@@ -5,13 +5,8 @@ use openrt_core::{Context, CoreError, PrimitiveKind};
 
 /// An axis-aligned box as 6 outward-facing quads with per-face texture coordinates.
 pub fn emit_box(ctx: &mut Context, lo: Vec3, hi: Vec3) -> Result<(), CoreError> {
-    let c = |i: usize| {
-        Vec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        )
-    };
+    let b = openrt_accel::Aabb::new(lo, hi);
+    let c = |i: usize| b.corner(i);
     let faces = [
         [0, 2, 3, 1],
         [4, 5, 7, 6],

@@ -4,26 +4,16 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 
 use glam::{Mat4, Vec2, Vec3};
-use openrt_core::{Camera, PointLight};
+use openrt_core::{Camera, Material, PointLight};
 
 use super::keyframes::Track;
 
-/// An `fm` material plus an optional texture file (index into [`AffScene::textures`]).
+/// An `fm` material state plus an optional texture file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AffMaterial {
-    /// Ambient, diffuse, specular colours.
-    pub ambient: Vec3,
-    /// Diffuse colour.
-    pub diffuse: Vec3,
-    /// Specular colour.
-    pub specular: Vec3,
-    /// Phong exponent.
-    pub shininess: f32,
-    /// Transmission.
-    pub transmission: f32,
-    /// Index of refraction.
-    pub ior: f32,
-    /// Texture index.
+    /// The `fm` parameters (its `texture` is unset: textures are files here).
+    pub material: Material,
+    /// Index into [`AffScene::textures`].
     pub texture: Option<usize>,
 }
 

@@ -4,7 +4,7 @@ use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Mat4, Vec2, Vec3};
-use openrt_core::{Camera, PointLight};
+use openrt_core::{Camera, Material, PointLight};
 
 use super::keyframes::{RotKey, Tcb, Track, VecKey};
 use super::model::{AffCounts, AffMaterial, AffMesh, AffScene, AnimNode, AnimatedTriangle, AnimationRange};
@@ -39,15 +39,7 @@ pub fn parse_aff(path: &Path) -> Result<AffScene, SceneError> {
             tracks: HashMap::new(),
             counts: AffCounts::default(),
         },
-        fm: AffMaterial {
-            ambient: Vec3::splat(0.1),
-            diffuse: Vec3::splat(0.8),
-            specular: Vec3::ZERO,
-            shininess: 0.0,
-            transmission: 0.0,
-            ior: 1.0,
-            texture: None,
-        },
+        fm: Material::default(),
         material_index: HashMap::new(),
         texture_index: HashMap::new(),
         xform: vec![Mat4::IDENTITY],
@@ -65,7 +57,7 @@ struct Parser {
     dir: PathBuf,
     scene: AffScene,
     /// The global material state (`fm` is never reset by blocks or files).
-    fm: AffMaterial,
+    fm: Material,
     material_index: HashMap<[u32; 12], Vec<(Option<usize>, usize)>>,
     texture_index: HashMap<String, usize>,
     /// Static transforms from the current frame (world or node) down to here.
@@ -249,8 +241,8 @@ impl Parser {
         }
         let i = self.scene.materials.len();
         self.scene.materials.push(AffMaterial {
+            material: self.fm.clone(),
             texture,
-            ..self.fm.clone()
         });
         list.push((texture, i));
         i

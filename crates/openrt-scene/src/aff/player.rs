@@ -65,14 +65,8 @@ impl AffPlayer {
         for m in &scene.materials {
             materials.push(
                 ctx.create_material(Material {
-                    ambient: m.ambient,
-                    diffuse: m.diffuse,
-                    specular: m.specular,
-                    shininess: m.shininess,
-                    transmission: m.transmission,
-                    ior: m.ior,
                     texture: m.texture.map(|i| textures[i]),
-                    one_sided: false,
+                    ..m.material.clone()
                 })
                 .map_err(core)?,
             );
@@ -201,6 +195,23 @@ fn mesh_key(m: &AffMesh) -> Vec<u32> {
     k
 }
 
+/// Opens a triangle run with material `m`, closing the previous run when the material changes.
+fn material_run(
+    ctx: &mut Context,
+    current: &mut Option<MaterialId>,
+    m: MaterialId,
+) -> Result<(), openrt_core::CoreError> {
+    if *current != Some(m) {
+        if current.is_some() {
+            ctx.end()?;
+        }
+        ctx.material(m)?;
+        ctx.begin(PrimitiveKind::Triangles)?;
+        *current = Some(m);
+    }
+    Ok(())
+}
+
 fn define(
     ctx: &mut Context,
     id: ObjectId,
@@ -210,15 +221,7 @@ fn define(
     ctx.begin_object(id)?;
     let mut current = None;
     for i in 0..mesh.len() {
-        let m = materials[mesh.materials[i]];
-        if current != Some(m) {
-            if current.is_some() {
-                ctx.end()?;
-            }
-            ctx.material(m)?;
-            ctx.begin(PrimitiveKind::Triangles)?;
-            current = Some(m);
-        }
+        material_run(ctx, &mut current, materials[mesh.materials[i]])?;
         if mesh.normals[i].is_none() {
             ctx.clear_normal()?;
         }
@@ -252,15 +255,7 @@ fn define_animated(
     ctx.begin_object(id)?;
     let mut current = None;
     for tri in &scene.animated {
-        let m = materials[tri.material];
-        if current != Some(m) {
-            if current.is_some() {
-                ctx.end()?;
-            }
-            ctx.material(m)?;
-            ctx.begin(PrimitiveKind::Triangles)?;
-            current = Some(m);
-        }
+        material_run(ctx, &mut current, materials[tri.material])?;
         let (v, n) = tri.at(time);
         if n.contains(&Vec3::ZERO) {
             ctx.clear_normal()?;
