@@ -503,6 +503,55 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
             f(max.map(|m| m.1))
         );
     }
+    // Thread scaling: every measured thread count, beside the paper's 1..16 CPUs.
+    let counts: Vec<usize> = {
+        let mut c: Vec<usize> = rows.iter().map(|r| r.threads).collect();
+        c.sort_unstable();
+        c.dedup();
+        c
+    };
+    if counts.len() > 2 {
+        let heads: Vec<String> = counts.iter().map(|t| format!("{t} thr")).collect();
+        let _ = writeln!(
+            md,
+            "\n## Thread scaling (fps; speedup and parallel efficiency against 1 thread)\n\n| scene | mode | {} | speedup | efficiency | paper speedup 1 -> 16 CPUs |\n|---|---|{}---:|---:|---:|",
+            heads.join(" | "),
+            "---:|".repeat(counts.len())
+        );
+        let mut pairs: Vec<(&str, &str)> = Vec::new();
+        for r in &rows {
+            if !pairs.contains(&(r.scene.as_str(), r.mode)) {
+                pairs.push((r.scene.as_str(), r.mode));
+            }
+        }
+        for (scene, mode) in pairs {
+            let at = |t: usize| {
+                rows.iter()
+                    .find(|r| r.scene == scene && r.mode == mode && r.threads == t)
+                    .map(Row::fps)
+            };
+            let cells: Vec<String> = counts
+                .iter()
+                .map(|&t| at(t).map_or("-".into(), |v| format!("{v:.2}")))
+                .collect();
+            let max = *counts.last().unwrap_or(&1);
+            let (speedup, eff) = match (at(1), at(max)) {
+                (Some(a), Some(b)) if a > 0.0 => {
+                    (format!("{:.2}x", b / a), format!("{:.0}%", 100.0 * b / a / max as f64))
+                }
+                _ => ("-".into(), "-".into()),
+            };
+            let paper = PAPER
+                .iter()
+                .find(|(s, m, _)| *s == scene && *m == mode)
+                .map_or("-".into(), |(_, _, p)| format!("{:.2}x", p[4] / p[0]));
+            let _ = writeln!(
+                md,
+                "| {scene} | {mode} | {} | {speedup} | {eff} | {paper} |",
+                cells.join(" | ")
+            );
+        }
+    }
     // Targets.
     let fps = |s: &str, m: &str| {
         rows.iter()
@@ -510,7 +559,7 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
             .max_by_key(|r| r.threads)
             .map(Row::fps)
     };
-    let _ = writeln!(md, "\n## Targets (2-core machine)\n");
+    let _ = writeln!(md, "\n## Targets (this machine)\n");
     let mut target = |what: &str, got: Option<f64>, goal: f64, unit: &str, higher: bool| {
         let line = match got {
             Some(g) if (higher && g >= goal) || (!higher && g <= goal) => {
