@@ -11,7 +11,7 @@
 //!   `min_leaf * leaf_growth^depth` primitives;
 //! - depth limited to `depth_factor` times the SAH builder's limit.
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, stitch};
 use crate::sah_build::{BuiltTree, default_max_depth};
 use crate::{Aabb, AccelError, Triangle};
 
@@ -299,24 +299,13 @@ impl Fast {
         lr?;
         rr?;
         // Stitch: this node, the left subtree right after it, then the right subtree.
-        let too_many = || AccelError::TooManyNodes {
-            limit: MAX_FIELD as usize,
-        };
-        let index = self.nodes.len();
-        let left_at = u32::try_from(index + 1).map_err(|_| too_many())?;
-        let left_prims = u32::try_from(self.prim_ids.len()).map_err(|_| too_many())?;
-        self.nodes.push(KdNode::interior(axis, split));
-        for n in &lb.nodes {
-            self.nodes.push(n.shifted(left_at, left_prims).ok_or_else(too_many)?);
-        }
-        self.prim_ids.extend_from_slice(&lb.prim_ids);
-        let right_at = u32::try_from(self.nodes.len()).map_err(|_| too_many())?;
-        let right_prims = u32::try_from(self.prim_ids.len()).map_err(|_| too_many())?;
-        self.nodes[index].set_above_child(right_at);
-        for n in &rb.nodes {
-            self.nodes.push(n.shifted(right_at, right_prims).ok_or_else(too_many)?);
-        }
-        self.prim_ids.extend_from_slice(&rb.prim_ids);
+        stitch(
+            &mut self.nodes,
+            &mut self.prim_ids,
+            (axis, split),
+            (&lb.nodes, &lb.prim_ids),
+            (&rb.nodes, &rb.prim_ids),
+        )?;
         self.depth_reached = self.depth_reached.max(lb.depth_reached).max(rb.depth_reached);
         Ok(())
     }

@@ -25,6 +25,47 @@ pub struct KdNode {
 
 const _: () = assert!(std::mem::size_of::<KdNode>() == 8);
 
+/// Appends a subtree (a node array rooted at 0 with its own leaf lists) to
+/// a depth-first array, shifting its child indices and list offsets: how
+/// subtrees built on other threads join the tree.
+pub(crate) fn append_shifted(
+    nodes: &mut Vec<KdNode>,
+    prims: &mut Vec<u32>,
+    sub_nodes: &[KdNode],
+    sub_prims: &[u32],
+) -> Result<(), crate::AccelError> {
+    let too_many = || crate::AccelError::TooManyNodes {
+        limit: MAX_FIELD as usize,
+    };
+    let at = u32::try_from(nodes.len()).map_err(|_| too_many())?;
+    let prim_at = u32::try_from(prims.len()).map_err(|_| too_many())?;
+    for n in sub_nodes {
+        nodes.push(n.shifted(at, prim_at).ok_or_else(too_many)?);
+    }
+    prims.extend_from_slice(sub_prims);
+    if nodes.len() > MAX_FIELD as usize || prims.len() > u32::MAX as usize {
+        return Err(too_many());
+    }
+    Ok(())
+}
+
+/// Appends an interior node splitting `axis` at `split`, then the `left`
+/// and `right` subtrees (see [`append_shifted`]).
+pub(crate) fn stitch(
+    nodes: &mut Vec<KdNode>,
+    prims: &mut Vec<u32>,
+    (axis, split): (usize, f32),
+    left: (&[KdNode], &[u32]),
+    right: (&[KdNode], &[u32]),
+) -> Result<(), crate::AccelError> {
+    let index = nodes.len();
+    nodes.push(KdNode::interior(axis, split));
+    append_shifted(nodes, prims, left.0, left.1)?;
+    let above = nodes.len() as u32;
+    nodes[index].set_above_child(above);
+    append_shifted(nodes, prims, right.0, right.1)
+}
+
 impl KdNode {
     /// An interior node splitting `axis` at `split`; the above child's index is set later.
     #[must_use]

@@ -54,6 +54,6 @@ pub use kdnode::{KdNode, MAX_DEPTH};
 pub use kdtree::{BuilderKind, KdTree, TreeStats};
 pub use ray::Ray;
 pub use sah_build::{SahParams, default_max_depth};
-pub use toplevel::InstanceBsp;
+pub use toplevel::{BspBuilder, InstanceBsp};
 pub use traverse::traverse;
 pub use triangle::{TriHit, Triangle, intersect_triangle, is_valid_triangle};

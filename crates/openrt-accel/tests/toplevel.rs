@@ -1,7 +1,7 @@
 //! The top-level instance BSP (Algorithm 1 of Wald, Benthin & Slusallek 2003).
 
 use glam::Vec3;
-use openrt_accel::{Aabb, InstanceBsp, Ray, traverse};
+use openrt_accel::{Aabb, BspBuilder, InstanceBsp, Ray, traverse};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
@@ -112,5 +112,31 @@ fn traversal_finds_every_box_a_ray_crosses_front_to_back() {
         found.sort_unstable();
         found.dedup();
         assert_eq!(found, expected);
+    }
+}
+
+#[test]
+fn the_tree_does_not_depend_on_the_thread_count_and_builders_reuse_memory() {
+    // Large enough for the upper levels to be split and built in parallel.
+    let boxes = random_boxes(12_000, 77, 1.5);
+    let reference = BspBuilder::new(1).build(&boxes).unwrap();
+    reference.validate(&boxes).unwrap();
+    for threads in [2, 3, 4, 8, 16] {
+        let mut builder = BspBuilder::new(threads);
+        for round in 0..2 {
+            // A second build with the same builder reuses its scratch.
+            let bsp = builder.build(&boxes).unwrap();
+            assert_eq!(bsp.nodes(), reference.nodes(), "{threads} threads, round {round}");
+            assert_eq!(bsp.references(), reference.references());
+            assert_eq!(bsp.depth(), reference.depth());
+            for &leaf in bsp.nodes().iter().filter(|n| n.is_leaf()) {
+                assert_eq!(bsp.leaf_items(leaf), reference.leaf_items(leaf));
+            }
+        }
+        // And then a smaller scene with the same builder.
+        let small = random_boxes(300, 5, 2.0);
+        let bsp = builder.build(&small).unwrap();
+        bsp.validate(&small).unwrap();
+        assert_eq!(bsp.nodes(), BspBuilder::new(1).build(&small).unwrap().nodes());
     }
 }

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
-use openrt_accel::{Aabb, BuilderKind, InstanceBsp, KdTree, Triangle, meshgen};
+use openrt_accel::{Aabb, BspBuilder, BuilderKind, KdTree, Triangle, meshgen};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
@@ -61,8 +61,9 @@ fn bench_toplevel(c: &mut Criterion) {
     for n in [100, 1_000, 10_000, 100_000] {
         let boxes = instance_boxes(n);
         g.throughput(Throughput::Elements(n as u64));
+        let mut builder = BspBuilder::default();
         g.bench_with_input(BenchmarkId::from_parameter(n), &boxes, |b, boxes| {
-            b.iter(|| InstanceBsp::build(black_box(boxes)).unwrap());
+            b.iter(|| builder.build(black_box(boxes)).unwrap());
         });
     }
     g.finish();
@@ -85,18 +86,37 @@ fn bench_object_builders(c: &mut Criterion) {
 
 fn summary() {
     println!("\nsummary (medians of this run)");
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
     println!(
-        "{:>9} {:>12} {:>8} {:>10}",
-        "instances", "rebuild ms", "nodes", "refs/inst"
+        "{:>9} {:>14} {:>14} {:>8} {:>8} {:>10}",
+        "instances",
+        "1 thread ms",
+        format!("{cores} threads ms"),
+        "speedup",
+        "nodes",
+        "refs/inst"
     );
     for n in [100, 1_000, 10_000, 100_000] {
         let boxes = instance_boxes(n);
+        // Interleaved: one build with each builder per round (noisy machine).
+        let (mut one, mut all) = (BspBuilder::new(1), BspBuilder::new(cores));
+        let (mut t1, mut tn) = (Vec::new(), Vec::new());
         let mut bsp = None;
-        let s = median(15, || bsp = Some(InstanceBsp::build(&boxes).unwrap()));
+        for _ in 0..15 {
+            t1.push(median(1, || bsp = Some(one.build(&boxes).unwrap())));
+            tn.push(median(1, || bsp = Some(all.build(&boxes).unwrap())));
+        }
+        let med = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (s1, sn) = (med(t1), med(tn));
         let bsp = bsp.unwrap();
         println!(
-            "{n:>9} {:>12.3} {:>8} {:>10.2}",
-            s * 1e3,
+            "{n:>9} {:>14.3} {:>14.3} {:>8.2} {:>8} {:>10.2}",
+            s1 * 1e3,
+            sn * 1e3,
+            s1 / sn,
             bsp.nodes().len(),
             bsp.references() as f64 / n as f64
         );

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use openrt_accel::{BuilderKind, InstanceBsp, KdTree};
+use openrt_accel::{BuilderKind, KdTree};
 
 use crate::context::Promotion;
 use crate::instance::InstanceRecord;
@@ -198,7 +198,10 @@ impl Context {
             .collect();
         let t0 = Instant::now();
         let boxes: Vec<_> = records.iter().map(|r| r.world_bounds).collect();
-        let bsp = InstanceBsp::build(&boxes).map_err(|source| CoreError::Accel { call: "commit", source })?;
+        let bsp = self
+            .bsp_builder
+            .build(&boxes)
+            .map_err(|source| CoreError::Accel { call: "commit", source })?;
         stats.toplevel_ms = t0.elapsed().as_secs_f64() * 1e3;
         stats.toplevel_nodes = bsp.nodes().len();
         stats.instances = records.len();

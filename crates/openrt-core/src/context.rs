@@ -110,6 +110,8 @@ pub struct Context {
     pub(crate) scene: Arc<Scene>,
     pub(crate) promote_after: Option<u32>,
     pub(crate) redefinition_builder: openrt_accel::BuilderKind,
+    /// Keeps the top-level build's scratch memory from frame to frame.
+    pub(crate) bsp_builder: openrt_accel::BspBuilder,
 }
 
 impl Default for Context {
@@ -138,6 +140,7 @@ impl Context {
             scene: Arc::new(Scene::default()),
             promote_after: Some(3),
             redefinition_builder: openrt_accel::BuilderKind::Fast,
+            bsp_builder: openrt_accel::BspBuilder::default(),
         }
     }
 
