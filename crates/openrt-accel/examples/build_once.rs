@@ -1,9 +1,20 @@
-//! Builds one SAH tree (for profiling): `build_once [N]`.
+//! Builds SAH trees (for profiling): `build_once [N] [binned_above|exact]`.
 fn main() {
     let n: usize = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(100_000);
+    let mode = std::env::args().nth(2).unwrap_or_else(|| "64".into());
+    let params = openrt_accel::SahParams {
+        binned_above: mode.parse().ok(),
+        ..openrt_accel::SahParams::default()
+    };
     let tris = openrt_accel::meshgen::bumpy_sphere(n, 42, 0.5);
     for _ in 0..3 {
-        let t = openrt_accel::KdTree::build_sah(tris.clone()).unwrap();
-        println!("{:.1} ms, {} nodes", t.stats().build_ms, t.stats().nodes);
+        let t = openrt_accel::KdTree::build_sah_with(tris.clone(), &params).unwrap();
+        println!(
+            "{mode}: {:.1} ms, {} nodes, {} refs, SAH cost {:.2}",
+            t.stats().build_ms,
+            t.stats().nodes,
+            t.stats().references,
+            t.sah_cost()
+        );
     }
 }

@@ -28,6 +28,7 @@ fn main() {
             intersection_cost: ki,
             empty_bonus: bonus,
             max_depth: md,
+            ..SahParams::default()
         };
         let t0 = Instant::now();
         let tree = KdTree::build_sah_with(tris.clone(), &p).unwrap();

@@ -220,6 +220,37 @@ impl KdTree {
         })
     }
 
+    /// The tree's expected cost under the surface area heuristic with the
+    /// default costs: each interior node costs a traversal step and each
+    /// leaf a test per reference, weighted by the probability that a random
+    /// ray hitting the root cell hits the node's cell. Lower is better;
+    /// compares trees over the same triangles.
+    #[must_use]
+    pub fn sah_cost(&self) -> f64 {
+        let p = SahParams::default();
+        let root_sa = f64::from(self.bounds.surface_area());
+        if root_sa <= 0.0 || !root_sa.is_finite() {
+            return 0.0;
+        }
+        let mut cost = 0.0;
+        let mut stack = vec![(0u32, self.bounds)];
+        while let Some((i, cell)) = stack.pop() {
+            let n = self.nodes[i as usize];
+            let w = f64::from(cell.surface_area()) / root_sa;
+            if n.is_leaf() {
+                cost += w * f64::from(p.intersection_cost) * f64::from(n.prim_count());
+            } else {
+                cost += w * f64::from(p.traversal_cost);
+                let (mut l, mut r) = (cell, cell);
+                l.max[n.axis()] = n.split();
+                r.min[n.axis()] = n.split();
+                stack.push((i + 1, l));
+                stack.push((n.above_child(), r));
+            }
+        }
+        cost
+    }
+
     /// Checks every structural invariant of the tree:
     /// - child indices point forward and inside the array, every node is
     ///   reached exactly once, depth stays under the traversal stack;

@@ -27,6 +27,7 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
 mod aabb;
+mod binned_sah;
 mod error;
 mod fast_build;
 mod hit;
@@ -53,7 +54,7 @@ pub use hit::Hit;
 pub use kdnode::{KdNode, MAX_DEPTH};
 pub use kdtree::{BuilderKind, KdTree, TreeStats};
 pub use ray::Ray;
-pub use sah_build::{SahParams, default_max_depth};
+pub use sah_build::{DEFAULT_BINNED_ABOVE, SahParams, default_max_depth};
 pub use toplevel::{BspBuilder, InstanceBsp};
 pub use traverse::traverse;
 pub use triangle::{TriHit, Triangle, intersect_triangle, is_valid_triangle};

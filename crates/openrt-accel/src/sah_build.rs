@@ -32,6 +32,12 @@ pub struct SahParams {
     pub empty_bonus: f32,
     /// Depth limit; `None` means `8 + 1.3 log2 N` (capped by the traversal stack).
     pub max_depth: Option<usize>,
+    /// Nodes with more references than this choose their plane among
+    /// binned candidates, smaller ones by the exact sweep
+    /// ([`crate::binned_sah`]); `None` builds the whole tree with Wald &
+    /// Havran's O(N log N) event lists (exact everywhere, several times
+    /// slower to build; the reference the binned trees are measured against).
+    pub binned_above: Option<usize>,
 }
 
 impl Default for SahParams {
@@ -41,9 +47,13 @@ impl Default for SahParams {
             intersection_cost: 0.5,
             empty_bonus: 0.8,
             max_depth: None,
+            binned_above: Some(DEFAULT_BINNED_ABOVE),
         }
     }
 }
+
+/// Default of [`SahParams::binned_above`].
+pub const DEFAULT_BINNED_ABOVE: usize = 64;
 
 /// The default depth limit for `n` primitives.
 #[must_use]
@@ -104,6 +114,9 @@ pub(crate) struct BuiltTree {
 
 /// Builds an SAH kd-tree over the valid triangles (`valid[i]`).
 pub(crate) fn build_sah(tris: &[Triangle], valid: &[bool], params: &SahParams) -> Result<BuiltTree, AccelError> {
+    if let Some(binned_above) = params.binned_above {
+        return crate::binned_sah::build_binned_sah(tris, valid, params, binned_above);
+    }
     let n_valid = valid.iter().filter(|&&v| v).count();
     if tris.len() > MAX_FIELD as usize {
         return Err(AccelError::TooManyPrimitives {

@@ -493,7 +493,10 @@ fn candidates(items: &[Item], cell: &Aabb, axis: usize) -> [Option<f32>; 2] {
 
 /// Instances left and right of each of two planes (straddlers and boxes
 /// flat in a plane count on both sides), in one pass.
-#[expect(clippy::needless_bitwise_bool, reason = "PERF: non-short-circuit `&` keeps the loop branch-free")]
+#[expect(
+    clippy::needless_bitwise_bool,
+    reason = "PERF: non-short-circuit `&` keeps the loop branch-free"
+)]
 fn side_counts(items: &[Item], axis: usize, planes: [f32; 2]) -> [(usize, usize); 2] {
     let [p, q] = planes;
     let (mut pl, mut pr, mut ql, mut qr) = (0usize, 0usize, 0usize, 0usize);
@@ -512,7 +515,10 @@ fn side_counts(items: &[Item], axis: usize, planes: [f32; 2]) -> [(usize, usize)
 /// Copies the instances left of `plane` to `dst[..nl]` and those right of
 /// it to `dst[n..n + nr]` (straddlers to both; boxes flat in the plane to
 /// both); returns `(nl, nr)`.
-#[expect(clippy::needless_bitwise_bool, reason = "PERF: non-short-circuit `&` keeps the loop branch-free")]
+#[expect(
+    clippy::needless_bitwise_bool,
+    reason = "PERF: non-short-circuit `&` keeps the loop branch-free"
+)]
 fn partition(src: &[Item], dst: &mut [Item], axis: usize, plane: f32) -> (usize, usize) {
     let n = src.len();
     let (left, right) = dst.split_at_mut(n);

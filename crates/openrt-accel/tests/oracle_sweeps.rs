@@ -2,15 +2,46 @@
 
 use glam::Vec3;
 use openrt_accel::oracle::BruteForce;
-use openrt_accel::{Aabb, KdTree, Ray, Triangle, meshgen};
+use openrt_accel::{Aabb, KdTree, Ray, SahParams, Triangle, meshgen};
 use proptest::prelude::*;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
-/// Builds, validates and checks every ray (closest and any-hit with a random cut-off).
+/// The SAH builder's three modes: the default (binned planes for large
+/// nodes, the exact sweep for small ones), binned everywhere, and Wald &
+/// Havran's exact event lists everywhere.
+fn builder_modes() -> [SahParams; 3] {
+    [
+        SahParams::default(),
+        SahParams {
+            binned_above: Some(0),
+            ..SahParams::default()
+        },
+        SahParams {
+            binned_above: None,
+            ..SahParams::default()
+        },
+    ]
+}
+
+/// Builds with every builder mode, validates, and checks every ray (closest
+/// and any-hit with a random cut-off); returns the closest hits per mode.
 fn check_all(tris: &[Triangle], rays: &[Ray], seed: u64) -> usize {
-    let tree = KdTree::build_sah(tris.to_vec()).expect("build");
-    tree.validate().expect("valid tree");
+    let mut hits = None;
+    for params in builder_modes() {
+        let tree = KdTree::build_sah_with(tris.to_vec(), &params).expect("build");
+        tree.validate().expect("valid tree");
+        let h = check_tree(&tree, tris, rays, seed);
+        assert!(
+            hits.is_none_or(|prev| prev == h),
+            "{params:?}: {h} hits, other modes {hits:?}"
+        );
+        hits = Some(h);
+    }
+    hits.unwrap_or(0)
+}
+
+fn check_tree(tree: &KdTree, tris: &[Triangle], rays: &[Ray], seed: u64) -> usize {
     let oracle = BruteForce::new(tris);
     let mut rng = SmallRng::seed_from_u64(seed);
     let mut hits = 0;
