@@ -27,6 +27,11 @@ pub struct SahParams {
     /// Cost of one traversal step.
     pub traversal_cost: f32,
     /// Cost of one ray/triangle test.
+    ///
+    /// NOTE: the default 0.25 comes from `examples/sah_sweep.rs` (100k-tri
+    /// mesh, one core): against 0.5 it builds 0.7x the time with 0.4x the
+    /// nodes and traces as fast or faster (random rays +10-15%); 0.15 starts
+    /// to lose trace speed. Figures in docs/PERFORMANCE.md.
     pub intersection_cost: f32,
     /// Factor (< 1) applied to the cost of a split with an empty side.
     pub empty_bonus: f32,
@@ -44,7 +49,7 @@ impl Default for SahParams {
     fn default() -> Self {
         Self {
             traversal_cost: 1.0,
-            intersection_cost: 0.5,
+            intersection_cost: 0.25,
             empty_bonus: 0.8,
             max_depth: None,
             binned_above: Some(DEFAULT_BINNED_ABOVE),
@@ -53,7 +58,7 @@ impl Default for SahParams {
 }
 
 /// Default of [`SahParams::binned_above`].
-pub const DEFAULT_BINNED_ABOVE: usize = 64;
+pub const DEFAULT_BINNED_ABOVE: usize = 16;
 
 /// The default depth limit for `n` primitives.
 #[must_use]
