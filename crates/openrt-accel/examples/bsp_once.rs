@@ -1,0 +1,48 @@
+//! Builds the top-level instance BSP repeatedly (for profiling):
+//! `bsp_once [instances] [rounds] [threads]`, boxes laid out as in the
+//! commit bench (a crowd of 2x4x2 boxes, every 97th one large).
+use std::time::Instant;
+
+use glam::Vec3;
+use openrt_accel::{Aabb, BspBuilder};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+fn main() {
+    let arg = |i: usize, d: usize| std::env::args().nth(i).and_then(|s| s.parse().ok()).unwrap_or(d);
+    let (n, rounds, threads) = (arg(1, 10_000), arg(2, 200), arg(3, 1));
+    let mut rng = SmallRng::seed_from_u64(n as u64);
+    let side = (n as f32).sqrt() * 4.0;
+    let boxes: Vec<Aabb> = (0..n)
+        .map(|i| {
+            let c = Vec3::new(
+                rng.random_range(0.0..side),
+                rng.random_range(0.0..4.0),
+                rng.random_range(0.0..side),
+            );
+            let h = if i % 97 == 0 {
+                Vec3::splat(side * 0.05)
+            } else {
+                Vec3::new(1.0, 2.0, 1.0)
+            };
+            Aabb::new(c - h, c + h)
+        })
+        .collect();
+    let mut builder = BspBuilder::new(threads);
+    let mut times: Vec<f64> = (0..rounds)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(builder.build(&boxes).unwrap());
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let bsp = builder.build(&boxes).unwrap();
+    println!(
+        "{n} instances, {threads} threads: median {:.3} ms, min {:.3} ms, {} nodes, depth {}",
+        times[times.len() / 2],
+        times[0],
+        bsp.nodes().len(),
+        bsp.depth()
+    );
+}
