@@ -40,6 +40,7 @@ impl InstanceBsp {
             threads: rayon::current_num_threads(),
             workers: Vec::new(),
             pool: None,
+            buffers: Vec::new(),
         }
         .build(boxes)
     }
@@ -170,6 +171,8 @@ pub struct BspBuilder {
     /// themselves at 10k instances on 16 cores; a rayon pool's threads wait
     /// between frames.
     pool: Option<rayon::ThreadPool>,
+    /// Partition buffers of the parallel upper levels, kept between frames.
+    buffers: Vec<Vec<Item>>,
 }
 
 impl Default for BspBuilder {
@@ -179,24 +182,17 @@ impl Default for BspBuilder {
     }
 }
 
-/// The upper levels split on the calling thread; each `Task` is a subtree
-/// built by its own worker.
+/// The upper levels, split in parallel; each `Task` is a subtree built by
+/// the worker it holds.
 enum Top {
     Split {
         axis: usize,
         plane: f32,
+        depth: usize,
         left: Box<Top>,
         right: Box<Top>,
     },
-    Task(usize),
-}
-
-/// A subtree to build: its cell, its instances in worker 0's arena, its depth.
-struct Task {
-    cell: Aabb,
-    at: usize,
-    n: usize,
-    depth: usize,
+    Task(Box<Builder>),
 }
 
 impl BspBuilder {
@@ -211,90 +207,71 @@ impl BspBuilder {
             threads,
             workers: Vec::new(),
             pool,
+            buffers: Vec::new(),
         }
     }
 
     /// Builds the tree over `boxes`; item `i` of a leaf is an index into
     /// `boxes`. Empty or non-finite boxes are left out.
     pub fn build(&mut self, boxes: &[Aabb]) -> Result<InstanceBsp, AccelError> {
-        use rayon::iter::{
-            IndexedParallelIterator, IntoParallelRefIterator, IntoParallelRefMutIterator, ParallelIterator,
-        };
         if boxes.len() > MAX_FIELD as usize {
             return Err(AccelError::TooManyPrimitives {
                 count: boxes.len(),
                 limit: MAX_FIELD as usize,
             });
         }
-        let levels = self.threads.ilog2();
-        let tasks_max = 1usize << levels;
-        self.workers.resize_with(1 + tasks_max, Builder::default);
-        let (main, task_workers) = self.workers.split_at_mut(1);
-        let main = &mut main[0];
-        main.arena.clear();
-        main.arena.extend(
-            boxes
-                .iter()
-                .enumerate()
-                .filter(|(_, b)| !b.is_empty() && b.is_finite())
-                .map(|(i, b)| Item {
-                    min: b.min.to_array(),
-                    max: b.max.to_array(),
-                    id: i as u32,
-                }),
-        );
+        // NOTE: two levels more than the thread count needs: subtrees differ
+        // in size and rayon's work stealing balances the spare ones.
+        let levels = if self.threads > 1 { self.threads.ilog2() + 2 } else { 0 };
+        let mut items: Vec<Item> = boxes
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| !b.is_empty() && b.is_finite())
+            .map(|(i, b)| Item {
+                min: b.min.to_array(),
+                max: b.max.to_array(),
+                id: i as u32,
+            })
+            .collect();
         let bounds = boxes
             .iter()
             .filter(|b| !b.is_empty() && b.is_finite())
             .fold(Aabb::EMPTY, |a, b| a.union(*b));
-        let n = main.arena.len();
+        let n = items.len();
         let max_depth = default_max_depth(n).min(MAX_DEPTH - 1);
-        for w in std::iter::once(&mut *main).chain(task_workers.iter_mut()) {
-            w.nodes.clear();
-            w.items.clear();
-            w.depth = 0;
-            w.max_depth = max_depth;
-        }
-        let (mut nodes, mut items, mut depth) = (Vec::new(), Vec::new(), 0);
-        if n == 0 {
-            nodes.push(KdNode::leaf(0, 0));
+        let spare = std::sync::Mutex::new(std::mem::take(&mut self.workers));
+        let buffers = std::sync::Mutex::new(std::mem::take(&mut self.buffers));
+        let ctx = TopCtx {
+            spare: &spare,
+            buffers: &buffers,
+            max_depth,
+        };
+        let top = if n == 0 {
+            Ok(None)
+        } else if levels == 0 || n < PARALLEL_MIN {
+            // NOTE: handing a small build to the pool costs more than it
+            // saves (a 1k-instance build ran 1.4x slower on 16 threads).
+            ctx.task(bounds, &items, 0).map(Some)
         } else {
-            let mut tasks = Vec::new();
-            let (top, _) = main.top(bounds, (0, n), n, 0, levels, &mut tasks);
-            if let Top::Task(_) = top {
-                main.node(bounds, 0, n, n, 0)?;
-                nodes = std::mem::take(&mut main.nodes);
-                items = std::mem::take(&mut main.items);
-                depth = main.depth;
-            } else {
-                let src = &main.arena;
-                // Each task copies its instances on its own thread (into that core's cache).
-                let run = move |t: &Task, w: &mut Builder| {
-                    w.arena.clear();
-                    w.arena.extend_from_slice(&src[t.at..t.at + t.n]);
-                    w.node(t.cell, 0, t.n, t.n, t.depth)
-                };
-                let results: Vec<Result<(), AccelError>> = match &self.pool {
-                    Some(pool) => pool.install(|| {
-                        tasks
-                            .par_iter()
-                            .zip(task_workers.par_iter_mut())
-                            .map(|(t, w)| run(t, w))
-                            .collect()
-                    }),
-                    None => tasks
-                        .iter()
-                        .zip(task_workers.iter_mut())
-                        .map(|(t, w)| run(t, w))
-                        .collect(),
-                };
-                results.into_iter().collect::<Result<(), _>>()?;
-                nodes.reserve(task_workers.iter().map(|w| w.nodes.len() + 1).sum());
-                items.reserve(task_workers.iter().map(|w| w.items.len()).sum());
-                assemble(&top, task_workers, &mut nodes, &mut items)?;
-                depth = task_workers.iter().map(|w| w.depth).max().unwrap_or(0).max(main.depth);
+            match &self.pool {
+                Some(pool) => pool.install(|| ctx.top(bounds, &mut items, 0, levels)).map(Some),
+                None => ctx.top(bounds, &mut items, 0, levels).map(Some),
+            }
+        };
+        self.workers = spare.into_inner().unwrap_or_default();
+        self.buffers = buffers.into_inner().unwrap_or_default();
+        let (mut nodes, mut leaf_items) = (Vec::new(), Vec::new());
+        let mut depth = 0;
+        match top? {
+            None => nodes.push(KdNode::leaf(0, 0)),
+            Some(top) => {
+                let (n_nodes, n_items) = top.sizes();
+                nodes.reserve(n_nodes);
+                leaf_items.reserve(n_items);
+                depth = assemble(top, &mut nodes, &mut leaf_items, &mut self.workers)?;
             }
         }
+        let items = leaf_items;
         let bsp = InstanceBsp {
             nodes,
             items,
@@ -312,19 +289,31 @@ impl BspBuilder {
     }
 }
 
-/// Writes the upper levels and the tasks' subtrees in depth-first order.
-fn assemble(top: &Top, workers: &[Builder], nodes: &mut Vec<KdNode>, items: &mut Vec<u32>) -> Result<(), AccelError> {
+/// Writes the upper levels and the tasks' subtrees in depth-first order,
+/// handing the workers back to `spare`; returns the deepest leaf's depth.
+fn assemble(
+    top: Top,
+    nodes: &mut Vec<KdNode>,
+    items: &mut Vec<u32>,
+    spare: &mut Vec<Builder>,
+) -> Result<usize, AccelError> {
     match top {
-        Top::Task(i) => append_shifted(nodes, items, &workers[*i].nodes, &workers[*i].items),
+        Top::Task(w) => {
+            append_shifted(nodes, items, &w.nodes, &w.items)?;
+            let depth = w.depth;
+            spare.push(*w);
+            Ok(depth)
+        }
         Top::Split {
             axis,
             plane,
+            depth,
             left,
             right,
         } => {
             let index = nodes.len();
-            nodes.push(KdNode::interior(*axis, *plane));
-            assemble(left, workers, nodes, items)?;
+            nodes.push(KdNode::interior(axis, plane));
+            let dl = assemble(*left, nodes, items, spare)?;
             let above =
                 u32::try_from(nodes.len())
                     .ok()
@@ -333,8 +322,88 @@ fn assemble(top: &Top, workers: &[Builder], nodes: &mut Vec<KdNode>, items: &mut
                         limit: MAX_FIELD as usize,
                     })?;
             nodes[index].set_above_child(above);
-            assemble(right, workers, nodes, items)
+            let dr = assemble(*right, nodes, items, spare)?;
+            Ok(depth.max(dl).max(dr))
         }
+    }
+}
+
+impl Top {
+    /// Nodes and leaf entries of the assembled tree.
+    fn sizes(&self) -> (usize, usize) {
+        match self {
+            Top::Task(w) => (w.nodes.len(), w.items.len()),
+            Top::Split { left, right, .. } => {
+                let ((a, b), (c, d)) = (left.sizes(), right.sizes());
+                (1 + a + c, b + d)
+            }
+        }
+    }
+}
+
+/// What the parallel upper levels share.
+struct TopCtx<'a> {
+    /// Idle workers (their buffers kept from earlier frames).
+    spare: &'a std::sync::Mutex<Vec<Builder>>,
+    /// Idle partition buffers of the upper levels.
+    buffers: &'a std::sync::Mutex<Vec<Vec<Item>>>,
+    max_depth: usize,
+}
+
+impl TopCtx<'_> {
+    /// Builds the subtree over `items` on one worker.
+    fn task(&self, cell: Aabb, items: &[Item], depth: usize) -> Result<Top, AccelError> {
+        let poisoned = || AccelError::Invalid("a parallel build panicked".into());
+        let mut w = self.spare.lock().map_err(|_| poisoned())?.pop().unwrap_or_default();
+        w.nodes.clear();
+        w.items.clear();
+        w.depth = 0;
+        w.max_depth = self.max_depth;
+        w.arena.clear();
+        w.arena.extend_from_slice(items);
+        let n = items.len();
+        match w.node(cell, 0, n, n, depth) {
+            Ok(()) => Ok(Top::Task(Box::new(w))),
+            Err(e) => {
+                self.spare.lock().map_err(|_| poisoned())?.push(w);
+                Err(e)
+            }
+        }
+    }
+
+    /// Splits the upper `levels` levels (the same planes [`Builder::node`]
+    /// would choose), building the two children of each split in parallel
+    /// (`rayon::join`) and the subtrees below them as tasks.
+    fn top(&self, cell: Aabb, items: &mut [Item], depth: usize, levels: u32) -> Result<Top, AccelError> {
+        let n = items.len();
+        if levels == 0 || n < PARALLEL_MIN || depth >= self.max_depth {
+            return self.task(cell, items, depth);
+        }
+        let poisoned = || AccelError::Invalid("a parallel build panicked".into());
+        // PERF: children buffers come from the builder's pool: allocating and
+        // filling fresh ones moved megabytes per frame at 10k instances.
+        let mut children = self.buffers.lock().map_err(|_| poisoned())?.pop().unwrap_or_default();
+        if children.len() < 2 * n {
+            children.resize(2 * n, FILLER);
+        }
+        let Some(Split { axis, plane, nl, nr }) = choose_and_partition(items, &mut children[..2 * n], &cell) else {
+            self.buffers.lock().map_err(|_| poisoned())?.push(children);
+            return self.task(cell, items, depth);
+        };
+        let (lcell, rcell) = halves(cell, axis, plane);
+        let (left, right) = children[..2 * n].split_at_mut(n);
+        let (l, r) = rayon::join(
+            || self.top(lcell, &mut left[..nl], depth + 1, levels - 1),
+            || self.top(rcell, &mut right[..nr], depth + 1, levels - 1),
+        );
+        self.buffers.lock().map_err(|_| poisoned())?.push(children);
+        Ok(Top::Split {
+            axis,
+            plane,
+            depth,
+            left: Box::new(l?),
+            right: Box::new(r?),
+        })
     }
 }
 
@@ -396,44 +465,6 @@ impl Builder {
         self.node(rcell, free + n, nr, scratch, depth + 1)
     }
 
-    /// Splits the upper `levels` levels (the same planes [`Self::node`]
-    /// would choose), leaving the rest to tasks. Returns the upper levels
-    /// and the end of the arena they use: tasks run later, so a right
-    /// subtree's scratch begins past everything its left sibling kept.
-    fn top(
-        &mut self,
-        cell: Aabb,
-        (at, n): (usize, usize),
-        free: usize,
-        depth: usize,
-        levels: u32,
-        tasks: &mut Vec<Task>,
-    ) -> (Top, usize) {
-        let task = |tasks: &mut Vec<Task>| {
-            tasks.push(Task { cell, at, n, depth });
-            (Top::Task(tasks.len() - 1), free)
-        };
-        if levels == 0 || n < PARALLEL_MIN || depth >= self.max_depth {
-            return task(tasks);
-        }
-        self.depth = self.depth.max(depth);
-        let Some(Split { axis, plane, nl, nr }) = self.split(&cell, at, n, free) else {
-            return task(tasks);
-        };
-        let (lcell, rcell) = halves(cell, axis, plane);
-        let (left, end) = self.top(lcell, (free, nl), free + 2 * n, depth + 1, levels - 1, tasks);
-        let (right, end) = self.top(rcell, (free + n, nr), end, depth + 1, levels - 1, tasks);
-        (
-            Top::Split {
-                axis,
-                plane,
-                left: Box::new(left),
-                right: Box::new(right),
-            },
-            end,
-        )
-    }
-
     /// Algorithm 1's plane: on the axis of largest extent (the others only
     /// when it has no valid plane), the box boundary strictly inside the cell
     /// nearest the centre on the side holding more instances, else the one
@@ -442,28 +473,33 @@ impl Builder {
         if self.arena.len() < free + 2 * n {
             self.arena.resize(free + 2 * n, FILLER);
         }
-        let ext = cell.extent();
-        for axis in axes_by_extent(ext) {
-            let (src, dst) = self.arena.split_at_mut(free);
-            let src = &src[at..at + n];
-            let cands = candidates(src, cell, axis);
-            let Some(first) = cands[0].or(cands[1]) else {
-                continue;
-            };
-            let planes = [first, cands[1].unwrap_or(first)];
-            let counts = side_counts(src, axis, planes);
-            // Valid: both sides lose instances and at most half of them
-            // straddle (a plane that duplicates more costs more than it separates).
-            let valid = |(nl, nr): (usize, usize)| nl < n && nr < n && 2 * (nl + nr - n) <= n;
-            if let Some(k) = (0..2).find(|&k| valid(counts[k])) {
-                let plane = planes[k];
-                let (nl, nr) = partition(src, &mut dst[..2 * n], axis, plane);
-                debug_assert_eq!((nl, nr), counts[k]);
-                return Some(Split { axis, plane, nl, nr });
-            }
-        }
-        None
+        let (src, dst) = self.arena.split_at_mut(free);
+        choose_and_partition(&src[at..at + n], &mut dst[..2 * n], cell)
     }
+}
+
+/// Algorithm 1's plane for `src` in `cell` (see [`Builder::split`]);
+/// partitions into `dst` (`2 * src.len()` long) as [`partition`] does.
+fn choose_and_partition(src: &[Item], dst: &mut [Item], cell: &Aabb) -> Option<Split> {
+    let n = src.len();
+    for axis in axes_by_extent(cell.extent()) {
+        let cands = candidates(src, cell, axis);
+        let Some(first) = cands[0].or(cands[1]) else {
+            continue;
+        };
+        let planes = [first, cands[1].unwrap_or(first)];
+        let counts = side_counts(src, axis, planes);
+        // Valid: both sides lose instances and at most half of them
+        // straddle (a plane that duplicates more costs more than it separates).
+        let valid = |(nl, nr): (usize, usize)| nl < n && nr < n && 2 * (nl + nr - n) <= n;
+        if let Some(k) = (0..2).find(|&k| valid(counts[k])) {
+            let plane = planes[k];
+            let (nl, nr) = partition(src, dst, axis, plane);
+            debug_assert_eq!((nl, nr), counts[k]);
+            return Some(Split { axis, plane, nl, nr });
+        }
+    }
+    None
 }
 
 /// The three axes, largest extent first (ties: lower axis first).
