@@ -16,7 +16,8 @@ const DEBUG_VALIDATE_LIMIT: usize = 20_000;
 /// Which builder made a tree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum BuilderKind {
-    /// Full SAH, Wald & Havran 2006 (static and affine objects).
+    /// SAH (static and affine objects): binned for large nodes, exact below
+    /// (Wald & Havran 2006 costs and planes); see [`SahParams`].
     Sah,
     /// The cheap builder for unstructured motion.
     Fast,
@@ -59,7 +60,9 @@ pub struct KdTree {
 }
 
 impl KdTree {
-    /// Builds a full-SAH tree (Wald & Havran 2006) with default costs.
+    /// Builds an SAH tree with default costs: binned planes for nodes above
+    /// [`crate::DEFAULT_BINNED_ABOVE`] references, every candidate plane of
+    /// Wald & Havran 2006 below.
     ///
     /// Zero-area triangles and triangles with non-finite vertices are left
     /// out (counted in [`TreeStats::dropped`]); they can never be hit.

@@ -9,6 +9,8 @@
 //! - Woop, Benthin & Wald, *Watertight Ray/Triangle Intersection*, JCGT 2013.
 //! - Wald & Havran, *On building fast kd-trees for ray tracing, and on doing
 //!   that in O(N log N)*, IEEE RT 2006.
+//! - Hunt, Mark & Stoll, *Fast kd-tree construction with an adaptive
+//!   error-bounded heuristic*, IEEE RT 2006 (binned SAH of the default builder).
 //! - Wald, Benthin & Slusallek, *A Flexible and Scalable Rendering Engine for
 //!   Interactive 3D Graphics* / *Distributed Interactive Ray Tracing of
 //!   Dynamic Scenes* (2002/2003), for the two-level method this crate serves.
