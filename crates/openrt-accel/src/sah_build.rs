@@ -39,7 +39,7 @@ pub struct SahParams {
     pub max_depth: Option<usize>,
     /// Nodes with more references than this choose their plane among
     /// binned candidates, smaller ones by the exact sweep
-    /// ([`crate::binned_sah`]); `None` builds the whole tree with Wald &
+    /// (module `binned_sah`); `None` builds the whole tree with Wald &
     /// Havran's O(N log N) event lists (exact everywhere, several times
     /// slower to build; the reference the binned trees are measured against).
     pub binned_above: Option<usize>,
