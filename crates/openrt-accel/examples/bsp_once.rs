@@ -3,31 +3,12 @@
 //! commit bench (a crowd of 2x4x2 boxes, every 97th one large).
 use std::time::Instant;
 
-use glam::Vec3;
-use openrt_accel::{Aabb, BspBuilder};
-use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
+use openrt_accel::BspBuilder;
 
 fn main() {
     let arg = |i: usize, d: usize| std::env::args().nth(i).and_then(|s| s.parse().ok()).unwrap_or(d);
     let (n, rounds, threads) = (arg(1, 10_000), arg(2, 200), arg(3, 1));
-    let mut rng = SmallRng::seed_from_u64(n as u64);
-    let side = (n as f32).sqrt() * 4.0;
-    let boxes: Vec<Aabb> = (0..n)
-        .map(|i| {
-            let c = Vec3::new(
-                rng.random_range(0.0..side),
-                rng.random_range(0.0..4.0),
-                rng.random_range(0.0..side),
-            );
-            let h = if i % 97 == 0 {
-                Vec3::splat(side * 0.05)
-            } else {
-                Vec3::new(1.0, 2.0, 1.0)
-            };
-            Aabb::new(c - h, c + h)
-        })
-        .collect();
+    let boxes = openrt_accel::meshgen::instance_crowd(n, n as u64);
     let mut builder = BspBuilder::new(threads);
     let mut times: Vec<f64> = (0..rounds)
         .map(|_| {

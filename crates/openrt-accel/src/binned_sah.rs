@@ -1,5 +1,5 @@
-//! The default SAH kd-tree builder: binned SAH for large nodes, an exact
-//! sweep for small ones.
+//! The default SAH kd-tree builder: binned SAH for large nodes, exact
+//! counts at every candidate plane for small ones.
 //!
 //! - Large nodes (more than [`SahParams::binned_above`] references) choose
 //!   their plane among the boundaries of equal bins on each axis, counted
@@ -10,9 +10,10 @@
 //!   dynamic scenes", Eurographics 2007). This is O(N) per level.
 //! - Small nodes try every reference boundary as Wald & Havran 2006 do,
 //!   with planar primitives tried on either side: the same planes and costs
-//!   as the full-SAH builder. Up to 64 references they count both sides of
-//!   each candidate with branch-free fixed-width loops; larger ones (only
-//!   when `binned_above` is set above 64) sort their bounds and sweep.
+//!   as the full-SAH builder. They count both sides of each candidate with
+//!   branch-free fixed-width loops, which is why exact nodes hold at most
+//!   64 references (a larger `binned_above` acts as 64; `None` selects the
+//!   sorted-event builder of [`crate::sah_build`] instead).
 //! - Defaults (`binned_above = 16`, `intersection_cost = 0.25`) were chosen
 //!   with `examples/sah_sweep.rs`: on a 100k-triangle mesh they build about
 //!   1 Mtris/s on one core and trace as fast as the exact builder's trees
@@ -24,12 +25,15 @@
 //!   [`crate::sah_build`] apply.
 //!
 //! PERF: references live in one stack-disciplined arena (a node's children
-//! are written past the node's own range; no allocation per node) and the
-//! sweep's sort buffers are reused.
+//! are written past the node's own range; no allocation per node).
 
 use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD};
 use crate::sah_build::{BuiltTree, SahParams, default_max_depth};
 use crate::{Aabb, AccelError, Triangle};
+
+/// The most references a node may have for the exact counts
+/// ([`Builder::small_plane`]); larger `binned_above` values act as this.
+const EXACT_MAX: usize = 64;
 
 /// Bins per axis in a binned node.
 const BINS: usize = 32;
@@ -109,13 +113,12 @@ pub(crate) fn build_binned_sah(
     let mut b = Builder {
         tris,
         params: *params,
-        binned_above: binned_above.max(1),
+        binned_above: binned_above.clamp(1, EXACT_MAX),
         arena,
         nodes: Vec::with_capacity(2 * n + 1),
         prim_ids: Vec::with_capacity(2 * n),
         max_depth,
         depth_reached: 0,
-        sweep: [Vec::new(), Vec::new(), Vec::new()],
     };
     if n == 0 {
         b.nodes.push(KdNode::leaf(0, 0));
@@ -140,8 +143,6 @@ struct Builder<'a> {
     prim_ids: Vec<u32>,
     max_depth: usize,
     depth_reached: usize,
-    /// Sort buffers of the exact sweep: starts, ends, planar positions.
-    sweep: [Vec<u32>; 3],
 }
 
 impl Builder<'_> {
@@ -163,10 +164,8 @@ impl Builder<'_> {
             self.small_plane::<32>(&cell, at, n)
         } else if n <= 32 {
             self.small_plane::<64>(&cell, at, n)
-        } else if n <= 64 {
-            self.small_plane::<128>(&cell, at, n)
         } else {
-            self.exact_plane(&cell, at, n)
+            self.small_plane::<128>(&cell, at, n)
         };
         let Some(plane) = plane.filter(|p| p.cost < leaf_cost) else {
             return self.leaf(at, n);
@@ -203,14 +202,6 @@ impl Builder<'_> {
         self.prim_ids.extend(self.arena[at..at + n].iter().map(|r| r.prim));
         self.nodes.push(KdNode::leaf(offset as u32, n as u32));
         Ok(())
-    }
-
-    /// The SAH cost of a split, with the empty-side bonus.
-    #[inline]
-    fn cost(&self, pl: f32, pr: f32, nl: usize, nr: usize) -> f32 {
-        let p = &self.params;
-        let c = p.traversal_cost + p.intersection_cost * (pl * nl as f32 + pr * nr as f32);
-        if nl == 0 || nr == 0 { c * p.empty_bonus } else { c }
     }
 
     /// The cheapest bin boundary over the three axes (min-max binning).
@@ -250,7 +241,7 @@ impl Builder<'_> {
 
     /// The cheapest plane among all reference boundaries for a node of at
     /// most `W / 2` references, by counting both sides of every candidate:
-    /// the same planes and costs as [`Self::exact_plane`].
+    /// the same planes and costs as Wald & Havran's sweep.
     ///
     /// PERF: for tiny nodes, `O(W²)` branch-free counts over fixed-width
     /// arrays (padding never counts: `inf < c`, `-inf > c` and `inf == c`
@@ -366,91 +357,6 @@ impl Builder<'_> {
         })
     }
 
-    /// The cheapest plane among all reference boundaries (Wald & Havran's
-    /// sweep over sorted bounds, planar primitives tried on either side).
-    fn exact_plane(&mut self, cell: &Aabb, at: usize, n: usize) -> Option<Plane> {
-        let sa = cell.surface_area();
-        if sa <= 0.0 || !sa.is_finite() {
-            return None;
-        }
-        let inv_sa = 1.0 / sa;
-        let ext = cell.extent();
-        let mut best: Option<Plane> = None;
-        let [mut starts, mut ends, mut planar] = std::mem::take(&mut self.sweep);
-        for k in 0..3 {
-            if ext[k] <= 0.0 {
-                continue;
-            }
-            starts.clear();
-            ends.clear();
-            planar.clear();
-            for r in &self.arena[at..at + n] {
-                let (a, b) = (r.b.min[k], r.b.max[k]);
-                if a == b {
-                    planar.push(order_key(a));
-                } else {
-                    starts.push(order_key(a));
-                    ends.push(order_key(b));
-                }
-            }
-            // PERF: integer keys sort markedly faster than f32 with total_cmp.
-            for v in [&mut starts, &mut ends, &mut planar] {
-                v.sort_unstable();
-            }
-            let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
-            let (cross, perim) = (ext[k1] * ext[k2], ext[k1] + ext[k2]);
-            let (mut nl, mut nr) = (0usize, n);
-            let (mut i, mut j, mut m) = (0usize, 0usize, 0usize);
-            loop {
-                let key = starts
-                    .get(i)
-                    .copied()
-                    .unwrap_or(u32::MAX)
-                    .min(ends.get(j).copied().unwrap_or(u32::MAX))
-                    .min(planar.get(m).copied().unwrap_or(u32::MAX));
-                if key == u32::MAX {
-                    break;
-                }
-                let p = from_order_key(key);
-                let (i0, j0, m0) = (i, j, m);
-                while j < ends.len() && ends[j] == key {
-                    j += 1;
-                }
-                while m < planar.len() && planar[m] == key {
-                    m += 1;
-                }
-                while i < starts.len() && starts[i] == key {
-                    i += 1;
-                }
-                let (pe, pp, ps) = (j - j0, m - m0, i - i0);
-                nr -= pp + pe;
-                if p > cell.min[k] && p < cell.max[k] {
-                    let (wl, wr) = (p - cell.min[k], cell.max[k] - p);
-                    let pl = 2.0 * (cross + wl * perim) * inv_sa;
-                    let pr = 2.0 * (cross + wr * perim) * inv_sa;
-                    let c_left = self.cost(pl, pr, nl + pp, nr);
-                    let c_right = self.cost(pl, pr, nl, nr + pp);
-                    let (c, planar_left) = if c_left <= c_right {
-                        (c_left, true)
-                    } else {
-                        (c_right, false)
-                    };
-                    if best.is_none_or(|b| c < b.cost) {
-                        best = Some(Plane {
-                            axis: k,
-                            pos: p,
-                            planar_left,
-                            cost: c,
-                        });
-                    }
-                }
-                nl += ps + pp;
-            }
-        }
-        self.sweep = [starts, ends, planar];
-        best
-    }
-
     /// Writes the left references to `arena[free..]` and the right ones to
     /// `arena[free + n..]`, clipping straddlers to each child cell (a side
     /// where nothing of the triangle remains drops it). Returns the child
@@ -536,58 +442,9 @@ fn split_bounds(tri: &Triangle, axis: usize, pos: f32) -> (Aabb, Aabb) {
     (lo, hi)
 }
 
-/// A key whose unsigned order is the order of the finite floats, with -0.0
-/// and +0.0 equal (NaN never occurs: bounds are finite). `u32::MAX` is left
-/// free as the end marker: it would be a NaN.
-#[inline]
-fn order_key(x: f32) -> u32 {
-    let b = (x + 0.0).to_bits();
-    if b & 0x8000_0000 != 0 { !b } else { b | 0x8000_0000 }
-}
-
-/// The float of an [`order_key`].
-#[inline]
-fn from_order_key(k: u32) -> f32 {
-    f32::from_bits(if k & 0x8000_0000 != 0 { k & 0x7fff_ffff } else { !k })
-}
-
 #[cfg(test)]
 mod tests {
-    use super::{from_order_key, order_key};
     use crate::{KdTree, SahParams, meshgen};
-
-    #[test]
-    fn order_keys_sort_like_the_floats_and_round_trip() {
-        let xs = [
-            -f32::MAX,
-            -1e30,
-            -1.0,
-            -f32::MIN_POSITIVE,
-            -1e-45,
-            -0.0,
-            0.0,
-            1e-45,
-            f32::MIN_POSITIVE,
-            1.0,
-            1.0 + f32::EPSILON,
-            1e30,
-            f32::MAX,
-        ];
-        for w in xs.windows(2) {
-            let (a, b) = (order_key(w[0]), order_key(w[1]));
-            if w[0] == w[1] {
-                assert_eq!(a, b, "{} and {} are equal floats", w[0], w[1]);
-            } else {
-                assert!(a < b, "{} < {} but keys {a:#x} >= {b:#x}", w[0], w[1]);
-            }
-        }
-        for x in xs {
-            let y = from_order_key(order_key(x));
-            assert!(y == x, "{x} round-trips to {y}");
-            assert_ne!(order_key(x), u32::MAX, "the end marker is never a key");
-        }
-        assert_eq!(from_order_key(order_key(-0.0)).to_bits(), 0.0f32.to_bits());
-    }
 
     /// Binned planes may cost a little tree quality, never much: the SAH
     /// cost of the default tree stays within 10% of the exact builder's

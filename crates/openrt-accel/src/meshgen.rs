@@ -125,6 +125,30 @@ pub fn random_soup(n: usize, seed: u64, bounds: Aabb, size: f32) -> Vec<Triangle
         .collect()
 }
 
+/// `n` instance boxes spread like a forest or a museum crowd: 2x4x2 boxes
+/// over a square of side `4 sqrt(n)`, every 97th one a large box (5% of the
+/// side). The layout of the top-level benchmarks.
+#[must_use]
+pub fn instance_crowd(n: usize, seed: u64) -> Vec<Aabb> {
+    let mut rng = SmallRng::seed_from_u64(seed);
+    let side = (n as f32).sqrt() * 4.0;
+    (0..n)
+        .map(|i| {
+            let c = Vec3::new(
+                rng.random_range(0.0..side),
+                rng.random_range(0.0..4.0),
+                rng.random_range(0.0..side),
+            );
+            let h = if i % 97 == 0 {
+                Vec3::splat(side * 0.05)
+            } else {
+                Vec3::new(1.0, 2.0, 1.0)
+            };
+            Aabb::new(c - h, c + h)
+        })
+        .collect()
+}
+
 /// Pinhole camera rays, `w` by `h`, from `eye` towards `at` (y up) with
 /// vertical field of view `fov_deg`, row by row.
 #[must_use]

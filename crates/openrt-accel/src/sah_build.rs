@@ -37,8 +37,9 @@ pub struct SahParams {
     pub empty_bonus: f32,
     /// Depth limit; `None` means `8 + 1.3 log2 N` (capped by the traversal stack).
     pub max_depth: Option<usize>,
-    /// Nodes with more references than this choose their plane among
-    /// binned candidates, smaller ones by the exact sweep
+    /// Nodes with more references than this (at most 64: larger values act
+    /// as 64) choose their plane among binned candidates, smaller ones among
+    /// every reference boundary
     /// (module `binned_sah`); `None` builds the whole tree with Wald &
     /// Havran's O(N log N) event lists (exact everywhere, several times
     /// slower to build; the reference the binned trees are measured against).

@@ -13,30 +13,6 @@ use std::time::Instant;
 use criterion::{BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
 use openrt_accel::{Aabb, BspBuilder, BuilderKind, KdTree, Triangle, meshgen};
-use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
-
-/// Instance boxes spread like a forest or a museum crowd: small boxes over a
-/// wide area, a few large ones.
-fn instance_boxes(n: usize) -> Vec<Aabb> {
-    let mut rng = SmallRng::seed_from_u64(n as u64);
-    let side = (n as f32).sqrt() * 4.0;
-    (0..n)
-        .map(|i| {
-            let c = Vec3::new(
-                rng.random_range(0.0..side),
-                rng.random_range(0.0..4.0),
-                rng.random_range(0.0..side),
-            );
-            let h = if i % 97 == 0 {
-                Vec3::splat(side * 0.05)
-            } else {
-                Vec3::new(1.0, 2.0, 1.0)
-            };
-            Aabb::new(c - h, c + h)
-        })
-        .collect()
-}
 
 /// Triangles of an animart-like object: `n` small triangles spread in a box.
 fn moving_triangles(n: usize) -> Vec<Triangle> {
@@ -59,7 +35,7 @@ fn median(reps: usize, mut f: impl FnMut()) -> f64 {
 fn bench_toplevel(c: &mut Criterion) {
     let mut g = c.benchmark_group("toplevel_rebuild");
     for n in [100, 1_000, 10_000, 100_000] {
-        let boxes = instance_boxes(n);
+        let boxes = meshgen::instance_crowd(n, n as u64);
         g.throughput(Throughput::Elements(n as u64));
         let mut builder = BspBuilder::default();
         g.bench_with_input(BenchmarkId::from_parameter(n), &boxes, |b, boxes| {
@@ -97,7 +73,7 @@ fn summary() {
         "refs/inst"
     );
     for n in [100, 1_000, 10_000, 100_000] {
-        let boxes = instance_boxes(n);
+        let boxes = meshgen::instance_crowd(n, n as u64);
         // Interleaved: one build with each builder per round (noisy machine).
         let (mut one, mut all) = (BspBuilder::new(1), BspBuilder::new(cores));
         let (mut t1, mut tn) = (Vec::new(), Vec::new());
