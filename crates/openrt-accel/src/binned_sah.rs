@@ -272,14 +272,12 @@ impl Builder<'_> {
                 c.left[i] = lt as f32;
                 c.right[i] = gt as f32;
             }
-            if any_planar {
+            best = if any_planar {
                 for i in 0..W {
                     let p = c.pos[i];
                     let on = (0..W / 2).filter(|&j| mins[j] == p && maxs[j] == p).count();
                     c.planar[i] = on as f32;
                 }
-            }
-            best = if any_planar {
                 self.cheapest::<W, true>(cell, k, &c, best)
             } else {
                 self.cheapest::<W, false>(cell, k, &c, best)

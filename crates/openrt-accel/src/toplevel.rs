@@ -39,6 +39,7 @@ impl InstanceBsp {
         BspBuilder {
             threads: rayon::current_num_threads(),
             workers: Vec::new(),
+            input: Vec::new(),
             pool: None,
             buffers: Vec::new(),
         }
@@ -156,14 +157,17 @@ const PARALLEL_MIN: usize = 2_048;
 /// arena and per-thread buffers) from one frame to the next.
 ///
 /// PERF: with a fresh arena every frame, page faults took a quarter of the
-/// build time at 100k instances. The upper levels are split on the calling
-/// thread, the subtrees below them built on one thread each and stitched in
-/// depth-first order; the tree does not depend on the thread count.
+/// build time at 100k instances. The upper levels are split in parallel
+/// (`rayon::join`), the subtrees below them built by one worker each and
+/// stitched in depth-first order; the tree does not depend on the thread
+/// count.
 #[derive(Debug)]
 pub struct BspBuilder {
     threads: usize,
-    /// `[0]` splits the upper levels; `[1 + i]` builds task `i`.
+    /// Idle subtree workers, their buffers kept between frames.
     workers: Vec<Builder>,
+    /// The instances of the current build, kept between frames.
+    input: Vec<Item>,
     /// Persistent worker threads for the tasks (`None`: rayon's global pool,
     /// or the calling thread alone when `threads` is 1).
     ///
@@ -196,7 +200,7 @@ enum Top {
 }
 
 impl BspBuilder {
-    /// A builder using at most `threads` threads (rounded down to a power of two).
+    /// A builder using at most `threads` threads.
     #[must_use]
     pub fn new(threads: usize) -> Self {
         let threads = threads.max(1);
@@ -206,6 +210,7 @@ impl BspBuilder {
         Self {
             threads,
             workers: Vec::new(),
+            input: Vec::new(),
             pool,
             buffers: Vec::new(),
         }
@@ -223,20 +228,20 @@ impl BspBuilder {
         // NOTE: two levels more than the thread count needs: subtrees differ
         // in size and rayon's work stealing balances the spare ones.
         let levels = if self.threads > 1 { self.threads.ilog2() + 2 } else { 0 };
-        let mut items: Vec<Item> = boxes
-            .iter()
-            .enumerate()
-            .filter(|(_, b)| !b.is_empty() && b.is_finite())
-            .map(|(i, b)| Item {
-                min: b.min.to_array(),
-                max: b.max.to_array(),
-                id: i as u32,
-            })
-            .collect();
-        let bounds = boxes
-            .iter()
-            .filter(|b| !b.is_empty() && b.is_finite())
-            .fold(Aabb::EMPTY, |a, b| a.union(*b));
+        let items = &mut self.input;
+        items.clear();
+        let mut bounds = Aabb::EMPTY;
+        for (i, b) in boxes.iter().enumerate() {
+            if !b.is_empty() && b.is_finite() {
+                bounds = bounds.union(*b);
+                items.push(Item {
+                    min: b.min.to_array(),
+                    max: b.max.to_array(),
+                    id: i as u32,
+                });
+            }
+        }
+        let items = &self.input;
         let n = items.len();
         let max_depth = default_max_depth(n).min(MAX_DEPTH - 1);
         let spare = std::sync::Mutex::new(std::mem::take(&mut self.workers));
@@ -251,11 +256,11 @@ impl BspBuilder {
         } else if levels == 0 || n < PARALLEL_MIN {
             // NOTE: handing a small build to the pool costs more than it
             // saves (a 1k-instance build ran 1.4x slower on 16 threads).
-            ctx.task(bounds, &items, 0).map(Some)
+            ctx.task(bounds, items, 0).map(Some)
         } else {
             match &self.pool {
-                Some(pool) => pool.install(|| ctx.top(bounds, &mut items, 0, levels)).map(Some),
-                None => ctx.top(bounds, &mut items, 0, levels).map(Some),
+                Some(pool) => pool.install(|| ctx.top(bounds, items, 0, levels)).map(Some),
+                None => ctx.top(bounds, items, 0, levels).map(Some),
             }
         };
         self.workers = spare.into_inner().unwrap_or_default();
@@ -374,7 +379,7 @@ impl TopCtx<'_> {
     /// Splits the upper `levels` levels (the same planes [`Builder::node`]
     /// would choose), building the two children of each split in parallel
     /// (`rayon::join`) and the subtrees below them as tasks.
-    fn top(&self, cell: Aabb, items: &mut [Item], depth: usize, levels: u32) -> Result<Top, AccelError> {
+    fn top(&self, cell: Aabb, items: &[Item], depth: usize, levels: u32) -> Result<Top, AccelError> {
         let n = items.len();
         if levels == 0 || n < PARALLEL_MIN || depth >= self.max_depth {
             return self.task(cell, items, depth);
@@ -391,10 +396,10 @@ impl TopCtx<'_> {
             return self.task(cell, items, depth);
         };
         let (lcell, rcell) = halves(cell, axis, plane);
-        let (left, right) = children[..2 * n].split_at_mut(n);
+        let (left, right) = children[..2 * n].split_at(n);
         let (l, r) = rayon::join(
-            || self.top(lcell, &mut left[..nl], depth + 1, levels - 1),
-            || self.top(rcell, &mut right[..nr], depth + 1, levels - 1),
+            || self.top(lcell, &left[..nl], depth + 1, levels - 1),
+            || self.top(rcell, &right[..nr], depth + 1, levels - 1),
         );
         self.buffers.lock().map_err(|_| poisoned())?.push(children);
         Ok(Top::Split {
