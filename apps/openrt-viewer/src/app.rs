@@ -211,7 +211,7 @@ impl ViewerApp {
         };
         let r = f.stats.rays;
         format!(
-            "{fps:.1} fps | {:.2} Mrays/s | {} frames rendered\nrays: primary {} shadow {} reflection {} refraction {}\ncommit {:.2} ms: top-level {:.3} ms, fast {} ({:.2} ms), SAH {} ({:.2} ms), promoted {}\n{} instances, {} objects, {} triangles | {}x{} | t = {:.3}",
+            "{fps:.1} fps | {:.2} Mrays/s | {} frames rendered\nrays: primary {} shadow {} reflection {} refraction {}\ncommit {:.2} ms: top-level {:.3} ms{}, fast {} ({:.2} ms), SAH {} ({:.2} ms), promoted {}\n{} instances, {} objects, {} triangles | {}x{} | t = {:.3}",
             f.stats.mrays_per_s,
             self.frames_rendered,
             r.primary,
@@ -220,6 +220,7 @@ impl ViewerApp {
             r.refraction,
             f.commit.total_ms,
             f.commit.toplevel_ms,
+            if f.commit.toplevel_reused { " (kept)" } else { "" },
             f.commit.build_count(BuilderKind::Fast),
             f.commit.build_ms(BuilderKind::Fast),
             f.commit.build_count(BuilderKind::Sah),

@@ -288,6 +288,7 @@ fn run(cli: Cli) -> Result<(), String> {
                     "time": t,
                     "commit_ms": c.total_ms,
                     "toplevel_ms": c.toplevel_ms,
+                    "toplevel_reused": c.toplevel_reused,
                     "fast_builds": c.build_count(BuilderKind::Fast),
                     "fast_build_ms": c.build_ms(BuilderKind::Fast),
                     "sah_builds": c.build_count(BuilderKind::Sah),

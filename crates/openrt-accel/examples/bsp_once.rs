@@ -20,10 +20,11 @@ fn main() {
     times.sort_by(f64::total_cmp);
     let bsp = builder.build(&boxes).unwrap();
     println!(
-        "{n} instances, {threads} threads: median {:.3} ms, min {:.3} ms, {} nodes, depth {}",
+        "{n} instances, {threads} threads: median {:.3} ms, min {:.3} ms, {} nodes, {} references, depth {}",
         times[times.len() / 2],
         times[0],
         bsp.nodes().len(),
+        bsp.references(),
         bsp.depth()
     );
 }

@@ -1,6 +1,8 @@
 //! Commit costs of the two-level method.
 //!
 //! - top-level BSP rebuild for 100, 1k, 10k, 100k instances (goal: 10k < 1 ms);
+//! - whole commits of 10k instances: every instance moved, and none (the
+//!   top level is then kept);
 //! - fast vs SAH object build for 1k/4k/16k/64k moving triangles, with the
 //!   trace speed each tree gives (the paper's trade-off for unstructured motion).
 //!
@@ -97,6 +99,7 @@ fn summary() {
             bsp.references() as f64 / n as f64
         );
     }
+    commit_summary();
     println!(
         "\n{:>7} {:>6} {:>9} {:>9} {:>7} {:>10}",
         "tris", "build", "ms", "Mtris/s", "depth", "trace Mr/s"
@@ -122,6 +125,59 @@ fn summary() {
             );
         }
     }
+}
+
+/// Whole commits of a 10k-instance crowd (one small object): all moved
+/// versus none moved, interleaved, medians of 15.
+fn commit_summary() {
+    use openrt_core::{Context, PrimitiveKind};
+    let n = 10_000;
+    let mut ctx = Context::new();
+    let obj = ctx.gen_object();
+    ctx.begin_object(obj).unwrap();
+    ctx.begin(PrimitiveKind::Triangles).unwrap();
+    for t in meshgen::bumpy_sphere(64, 1, 0.2) {
+        for v in t {
+            ctx.vertex(v).unwrap();
+        }
+    }
+    ctx.end().unwrap();
+    ctx.end_object().unwrap();
+    let centres: Vec<Vec3> = meshgen::instance_crowd(n, n as u64).iter().map(Aabb::center).collect();
+    let ids: Vec<_> = centres
+        .iter()
+        .map(|&c| {
+            ctx.load_identity();
+            ctx.translate(c).unwrap();
+            ctx.instantiate(obj).unwrap()
+        })
+        .collect();
+    ctx.commit().unwrap();
+    let (mut moved, mut still, mut top) = (Vec::new(), Vec::new(), Vec::new());
+    for frame in 0..15 {
+        for (&id, &c) in ids.iter().zip(&centres) {
+            let offset = Vec3::new(0.0, 0.01 * (frame + 1) as f32, 0.0);
+            ctx.set_instance_transform(id, glam::Mat4::from_translation(c + offset))
+                .unwrap();
+        }
+        let s = ctx.commit().unwrap();
+        assert!(!s.toplevel_reused);
+        moved.push(s.total_ms);
+        top.push(s.toplevel_ms);
+        let s = ctx.commit().unwrap();
+        assert!(s.toplevel_reused);
+        still.push(s.total_ms);
+    }
+    let med = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    println!(
+        "\ncommit of {n} instances: all moved {:.3} ms (top level {:.3} ms), none moved {:.3} ms (top level kept)",
+        med(moved),
+        med(top),
+        med(still)
+    );
 }
 
 fn main() {

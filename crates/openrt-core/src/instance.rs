@@ -38,7 +38,8 @@ impl InstanceRecord {
         let to_object = m.inverse();
         let lin = Mat3::from(m.matrix3);
         let det_sign = lin.determinant().signum();
-        let normal_matrix = lin.inverse().transpose();
+        // The inverse's linear part is the linear part's inverse: no second inversion.
+        let normal_matrix = Mat3::from(to_object.matrix3).transpose();
         let b = geometry.tree.bounds();
         let world_bounds = if b.is_empty() {
             Aabb::EMPTY

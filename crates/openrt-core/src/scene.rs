@@ -53,8 +53,10 @@ pub struct Surface {
 /// A committed, immutable frame that any number of threads can trace.
 #[derive(Debug, Default)]
 pub struct Scene {
-    pub(crate) instances: Vec<InstanceRecord>,
-    pub(crate) bsp: InstanceBsp,
+    /// Shared with the next frame's scene when no instance changed.
+    pub(crate) instances: Arc<Vec<InstanceRecord>>,
+    /// Shared with the next frame's scene when no instance box changed.
+    pub(crate) bsp: Arc<InstanceBsp>,
     pub(crate) materials: Arc<Vec<Material>>,
     pub(crate) textures: Arc<Vec<Arc<Texture>>>,
     pub(crate) frame: u64,

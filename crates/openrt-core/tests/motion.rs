@@ -39,6 +39,7 @@ fn each_object_pays_only_for_what_changed_and_settled_objects_are_promoted() {
         assert_eq!(s.builds.len(), 1, "only the redefined object is rebuilt");
         assert_eq!((s.builds[0].object, s.builds[0].builder), (morphing, BuilderKind::Fast));
         assert!(s.toplevel_ms >= 0.0 && s.toplevel_nodes >= 1);
+        assert!(!s.toplevel_reused, "boxes moved: the top level is rebuilt");
     }
     assert_eq!(ctx.object_builder(morphing).unwrap(), Some(BuilderKind::Fast));
     assert_eq!(ctx.object_builder(moving).unwrap(), Some(BuilderKind::Sah));
@@ -47,6 +48,7 @@ fn each_object_pays_only_for_what_changed_and_settled_objects_are_promoted() {
     for _ in 0..3 {
         let s = ctx.commit().unwrap();
         assert!(s.builds.is_empty());
+        assert!(s.toplevel_reused, "nothing moved: the top level is kept");
         started |= s.promotions_started.contains(&morphing);
     }
     assert!(started);
@@ -102,4 +104,48 @@ fn an_instance_spanning_many_cells_is_intersected_once_per_ray() {
         "{tests} instance tests for 21 instances: the mailbox must stop repeats"
     );
     assert!(tests >= 1);
+}
+
+/// One triangle of the square [-1, 1]^2 at z = 0: the lower-left half or
+/// the upper-right one (the same bounding box).
+fn half_square(ctx: &mut Context, id: openrt_core::ObjectId, upper: bool) {
+    let s = if upper { -1.0 } else { 1.0 };
+    ctx.begin_object(id).unwrap();
+    ctx.begin(PrimitiveKind::Triangles).unwrap();
+    for (x, y) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0)] {
+        ctx.vertex(Vec3::new(s * x, s * y, 0.0)).unwrap();
+    }
+    ctx.end().unwrap();
+    ctx.end_object().unwrap();
+}
+
+#[test]
+fn an_unchanged_box_list_keeps_the_top_level_tree_and_new_geometry_is_seen() {
+    let mut ctx = Context::new();
+    let obj = ctx.gen_object();
+    half_square(&mut ctx, obj, false);
+    let a = ctx.instantiate(obj).unwrap();
+    ctx.translate(Vec3::new(5.0, 0.0, 0.0)).unwrap();
+    let _ = ctx.instantiate(obj).unwrap();
+    let s = ctx.commit().unwrap();
+    assert!(!s.toplevel_reused, "the first commit builds");
+    let down = |x: f32| Ray::infinite(Vec3::new(x, 0.5, 3.0), Vec3::NEG_Z);
+    assert!(ctx.scene().intersect(&down(0.5)).is_none());
+    // Redefined with the same bounds: the object tree is rebuilt, the top
+    // level is kept, and rays see the new triangle in both instances.
+    half_square(&mut ctx, obj, true);
+    let s = ctx.commit().unwrap();
+    assert!(s.toplevel_reused);
+    assert_eq!(s.builds.len(), 1);
+    for x in [0.5, 5.5] {
+        let hit = ctx.scene().intersect(&down(x)).expect("the upper half is hit");
+        assert!((hit.t - 3.0).abs() < 1e-5);
+    }
+    // A moved instance rebuilds the top level.
+    ctx.set_instance_transform(a, Mat4::from_translation(Vec3::new(0.0, 10.0, 0.0)))
+        .unwrap();
+    let s = ctx.commit().unwrap();
+    assert!(!s.toplevel_reused);
+    assert!(ctx.scene().intersect(&down(0.5)).is_none());
+    assert!(ctx.scene().intersect(&down(5.5)).is_some());
 }

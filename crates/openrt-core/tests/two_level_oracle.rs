@@ -86,7 +86,17 @@ fn animated_scenes_match_the_flattened_oracle_every_frame() {
         }
         ctx.load_identity();
         for frame in 0..6 {
-            if frame > 0 {
+            if frame == 2 {
+                // Slot reuse: a removed instance's slot comes back with a
+                // new generation and must not keep the old record.
+                let (inst, k) = instances.remove(0);
+                ctx.remove_instance(inst).unwrap();
+                ctx.load_matrix(random_transform(&mut rng)).unwrap();
+                instances.push((ctx.instantiate(objects[k].0).unwrap(), k));
+                ctx.load_identity();
+            }
+            // Frame 5 moves nothing: records and the top level are kept.
+            if frame > 0 && frame < 5 {
                 for &(inst, k) in &instances {
                     if matches!(objects[k].2, Motion::Affine) {
                         ctx.set_instance_transform(inst, random_transform(&mut rng)).unwrap();
@@ -111,6 +121,7 @@ fn animated_scenes_match_the_flattened_oracle_every_frame() {
                 assert_eq!(stats.build_count(openrt_accel::BuilderKind::Sah), 0);
             }
             if frame == 5 {
+                assert!(stats.toplevel_reused, "nothing moved in frame 5");
                 ctx.wait_for_promotions();
             }
             let scene = ctx.scene();
