@@ -79,14 +79,18 @@ impl<'a> KeptRecords<'a> {
     /// same handle, same object geometry, bit-identical transform.
     fn get(&mut self, id: InstanceId, slot: &InstanceSlot, geom: &Arc<ObjectGeometry>) -> Option<&'a InstanceRecord> {
         while self.0.next_if(|r| r.id.index < id.index).is_some() {}
-        let bits = |m: &glam::Affine3A| m.to_cols_array().map(f32::to_bits);
         self.0.next_if(|r| r.id.index == id.index).filter(|r| {
             r.id == id
                 && r.object == slot.object
                 && Arc::ptr_eq(&r.geometry, geom)
-                && bits(&r.to_world) == bits(&slot.transform)
+                && same_bits(r.to_world.to_cols_array(), slot.transform.to_cols_array())
         })
     }
+}
+
+/// Bit-for-bit equality (-0.0 differs from 0.0: it changes reciprocals).
+fn same_bits<const N: usize>(a: [f32; N], b: [f32; N]) -> bool {
+    a.map(f32::to_bits) == b.map(f32::to_bits)
 }
 
 impl Context {
@@ -221,6 +225,8 @@ impl Context {
                     Some((id, s, geom))
                 })
         };
+        // NOTE: this check pass stops at the first changed instance; only a
+        // frame that moves nothing walks the whole list, and then clones nothing.
         let mut kept = KeptRecords(prev.instances.iter().peekable());
         let mut count = 0;
         let all_kept = live().all(|(id, s, geom)| {
@@ -244,18 +250,13 @@ impl Context {
         // NOTE: the BSP is a function of the box list alone (leaf items are
         // indices into it), so an unchanged list, compared bit for bit,
         // keeps the last tree even when objects behind the boxes changed.
-        let same_bits = |a: &openrt_accel::Aabb, b: &openrt_accel::Aabb| {
-            a.min.to_array().map(f32::to_bits) == b.min.to_array().map(f32::to_bits)
-                && a.max.to_array().map(f32::to_bits) == b.max.to_array().map(f32::to_bits)
-        };
         stats.toplevel_reused = !prev.bsp.nodes().is_empty()
             && (all_kept
                 || prev.instances.len() == records.len()
-                    && prev
-                        .instances
-                        .iter()
-                        .zip(records.iter())
-                        .all(|(p, r)| same_bits(&p.world_bounds, &r.world_bounds)));
+                    && prev.instances.iter().zip(records.iter()).all(|(p, r)| {
+                        let (a, b) = (p.world_bounds, r.world_bounds);
+                        same_bits(a.min.to_array(), b.min.to_array()) && same_bits(a.max.to_array(), b.max.to_array())
+                    }));
         let bsp = if stats.toplevel_reused {
             Arc::clone(&prev.bsp)
         } else {
