@@ -42,8 +42,12 @@ fn median_secs(reps: usize, mut f: impl FnMut()) -> f64 {
             t.elapsed().as_secs_f64()
         })
         .collect();
+    median(&mut v)
+}
+
+fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
-    v[reps / 2]
+    v[v.len() / 2]
 }
 
 fn bench_build(c: &mut Criterion) {
@@ -91,7 +95,7 @@ fn bench_trace(c: &mut Criterion) {
 
 /// One table of medians from this run (7 repetitions each).
 fn summary() {
-    println!("\nsummary (median of 7, this run)");
+    println!("\nsummary (median of 7, this run; ratio: median of 7 paired, interleaved passes)");
     println!(
         "{:>9} {:>12} {:>8} {:>10} {:>10} {:>10} {:>7}",
         "tris", "build Mt/s", "rays", "query", "kd Mr/s", "embree", "ratio"
@@ -107,28 +111,43 @@ fn summary() {
         let emb = openrt_accel::EmbreeMesh::new(&tris, true).unwrap();
         for (kind, rays) in ray_sets(&tris) {
             for query in ["closest", "occluded"] {
-                let kd = median_secs(7, || {
-                    black_box(if query == "closest" {
+                let closest = query == "closest";
+                let kd_pass = || {
+                    let t = Instant::now();
+                    black_box(if closest {
                         rays.iter().filter(|r| tree.intersect(r).is_some()).count()
                     } else {
                         rays.iter().filter(|r| tree.occluded(r)).count()
                     });
-                });
-                let kd_mrays = rays.len() as f64 / kd / 1e6;
-                #[cfg(feature = "embree")]
-                let (emb_s, ratio) = {
-                    let e = median_secs(7, || {
-                        black_box(if query == "closest" {
+                    t.elapsed().as_secs_f64()
+                };
+                // NOTE: kd and Embree passes alternate, and the ratio is the
+                // median of the seven paired ratios: both sides of a pair see
+                // the same machine load (this machine is shared and noisy).
+                let (mut kd, mut peer, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+                for _ in 0..7 {
+                    let k = kd_pass();
+                    kd.push(k);
+                    #[cfg(feature = "embree")]
+                    {
+                        let t = Instant::now();
+                        black_box(if closest {
                             rays.iter().filter(|r| emb.intersect(r).is_some()).count()
                         } else {
                             rays.iter().filter(|r| emb.occluded(r)).count()
                         });
-                    });
-                    let e_mrays = rays.len() as f64 / e / 1e6;
-                    (format!("{e_mrays:.2}"), format!("{:.2}", kd_mrays / e_mrays))
+                        let e = t.elapsed().as_secs_f64();
+                        peer.push(e);
+                        ratios.push(e / k);
+                    }
+                }
+                let kd_mrays = rays.len() as f64 / median(&mut kd) / 1e6;
+                let (emb_s, ratio) = if peer.is_empty() {
+                    ("-".to_string(), "-".to_string())
+                } else {
+                    let e_mrays = rays.len() as f64 / median(&mut peer) / 1e6;
+                    (format!("{e_mrays:.2}"), format!("{:.2}", median(&mut ratios)))
                 };
-                #[cfg(not(feature = "embree"))]
-                let (emb_s, ratio) = ("-".to_string(), "-".to_string());
                 println!(
                     "{:>9} {build:>12.2} {kind:>8} {query:>10} {kd_mrays:>10.2} {emb_s:>10} {ratio:>7}",
                     tris.len()
@@ -137,13 +156,14 @@ fn summary() {
         }
         let st = tree.stats();
         println!(
-            "          tree: {} nodes, {} leaves ({} empty), {} refs ({:.2}/tri), depth {}",
+            "          tree: {} nodes, {} leaves ({} empty), {} refs ({:.2}/tri), depth {}, {:.1} MiB",
             st.nodes,
             st.leaves,
             st.empty_leaves,
             st.references,
             st.references as f64 / tris.len() as f64,
-            st.depth
+            st.depth,
+            st.bytes as f64 / (1024.0 * 1024.0)
         );
     }
 }

@@ -16,15 +16,14 @@ fn main() {
         "KT", "KI", "bonus/depth/binned", "build ms", "nodes", "refs/t", "depth", "cam Mr/s", "rnd Mr/s"
     );
     for (kt, ki, bonus, md, binned) in [
-        (1.0, 0.5, 0.8, None, Some(64)),
-        (1.0, 0.3, 0.8, None, Some(64)),
-        (1.0, 0.25, 0.8, None, Some(64)),
-        (1.0, 0.2, 0.8, None, Some(64)),
-        (1.0, 0.15, 0.8, None, Some(64)),
-        (1.0, 0.25, 0.8, None, None),
-        (1.0, 0.25, 0.8, None, Some(32)),
+        (1.0, 0.5, 0.8, None, Some(16)),
         (1.0, 0.25, 0.8, None, Some(16)),
-        (1.0, 0.25, 0.8, None, Some(0)),
+        (1.0, 0.2, 0.8, None, Some(16)),
+        (1.0, 0.15, 0.8, None, Some(16)),
+        (1.0, 0.12, 0.8, None, Some(16)),
+        (1.0, 0.1, 0.8, None, Some(16)),
+        (1.0, 0.08, 0.8, None, Some(16)),
+        (1.0, 0.25, 0.8, None, Some(64)),
     ] {
         let p = SahParams {
             traversal_cost: kt,
@@ -33,7 +32,7 @@ fn main() {
             max_depth: md,
             binned_above: binned,
         };
-        // Best of three builds and of three trace passes: the least disturbed.
+        // Best of three builds and of seven trace passes: the least disturbed.
         let mut build = f64::INFINITY;
         let mut tree = None;
         for _ in 0..3 {
@@ -48,7 +47,7 @@ fn main() {
             std::hint::black_box(c);
             rays.len() as f64 / t0.elapsed().as_secs_f64() / 1e6
         };
-        let best = |rays: &[openrt_accel::Ray]| (0..3).map(|_| speed(rays)).fold(0.0, f64::max);
+        let best = |rays: &[openrt_accel::Ray]| (0..7).map(|_| speed(rays)).fold(0.0, f64::max);
         let (c, r) = (best(&cam), best(&rnd));
         let s = tree.stats();
         println!(

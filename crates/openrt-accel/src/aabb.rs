@@ -158,25 +158,30 @@ impl Aabb {
     /// so rounding never shrinks the interval. A zero direction component
     /// (of either sign) is decided by the origin alone, so a ray running
     /// along a face is inside the box.
+    // PERF: inlined and read through arrays: as a call with `Vec3` indexing
+    // it was 7% of a closest-hit profile (one clip per ray and per instance).
     #[must_use]
+    #[inline]
     pub fn clip(&self, ray: &Ray) -> Option<(f32, f32)> {
         if self.is_empty() {
             return None;
         }
         let mut t0 = ray.t_min;
         let mut t1 = ray.t_max;
+        let (org, dir, inv_dir) = (ray.origin.to_array(), ray.dir.to_array(), ray.inv_dir.to_array());
+        let (lo, hi) = (self.min.to_array(), self.max.to_array());
         for a in 0..3 {
-            let o = ray.origin[a];
+            let o = org[a];
             // NOTE: exact comparison: only a true zero makes the ray parallel.
-            if ray.dir[a] == 0.0 {
-                if o < self.min[a] || o > self.max[a] {
+            if dir[a] == 0.0 {
+                if o < lo[a] || o > hi[a] {
                     return None;
                 }
                 continue;
             }
-            let inv = ray.inv_dir[a];
-            let mut tn = (self.min[a] - o) * inv;
-            let mut tf = (self.max[a] - o) * inv;
+            let inv = inv_dir[a];
+            let mut tn = (lo[a] - o) * inv;
+            let mut tf = (hi[a] - o) * inv;
             if tn > tf {
                 std::mem::swap(&mut tn, &mut tf);
             }

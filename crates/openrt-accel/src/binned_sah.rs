@@ -14,10 +14,10 @@
 //!   branch-free fixed-width loops, which is why exact nodes hold at most
 //!   64 references (a larger `binned_above` acts as 64; `None` selects the
 //!   sorted-event builder of [`crate::sah_build`] instead).
-//! - Defaults (`binned_above = 16`, `intersection_cost = 0.25`) were chosen
-//!   with `examples/sah_sweep.rs`: on a 100k-triangle mesh they build about
-//!   1 Mtris/s on one core and trace as fast as the exact builder's trees
-//!   (whose SAH cost is 7-8% lower). Figures in docs/PERFORMANCE.md.
+//! - Defaults (`binned_above = 16`, `intersection_cost = 0.1`) were chosen
+//!   with `examples/sah_sweep.rs` and `examples/ab_ki.rs`: on a 100k-triangle
+//!   mesh they build well above 1 Mtris/s on one core and trace as fast as
+//!   the exact builder's trees. Figures in docs/PERFORMANCE.md.
 //! - Straddling references are clipped to each child cell at every level
 //!   ("perfect splits"): the triangle is split at the plane and each part's
 //!   bounds intersected with the reference's box ([`split_bounds`]). The

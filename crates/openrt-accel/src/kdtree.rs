@@ -4,9 +4,10 @@ use std::time::Instant;
 
 use crate::fast_build::{FastParams, build_fast};
 use crate::kdnode::{KdNode, MAX_DEPTH};
+use crate::leaf_blocks::{BlockRay, LANES, TriBlock, leaf_any, leaf_closest, pack_leaves};
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
-use crate::triangle::{intersect_triangle, is_valid_triangle};
+use crate::triangle::is_valid_triangle;
 use crate::{Aabb, AccelError, Hit, Ray, Triangle};
 
 /// Largest tree validated automatically after its build in debug-assertion builds.
@@ -44,17 +45,30 @@ pub struct TreeStats {
     pub depth: usize,
     /// Build time in milliseconds.
     pub build_ms: f64,
+    /// Heap bytes held by the tree: nodes, leaf indices (with block
+    /// padding), leaf blocks and triangles.
+    pub bytes: usize,
 }
 
 /// A kd-tree over triangles, in a flat node array with 8-byte nodes.
 ///
 /// The tree owns its triangles; `Hit::prim` is the index of the triangle in
 /// the slice given to the builder.
+///
+/// PERF: besides the triangle array, each leaf's triangles are copied in
+/// SIMD blocks of four (144 bytes per block; with ~1.9 references per
+/// triangle a tree takes about 120 bytes per triangle, see
+/// [`TreeStats::bytes`]) so that a leaf's misses are rejected four at a
+/// time; see `leaf_blocks.rs`.
 #[derive(Clone, Debug)]
 pub struct KdTree {
     nodes: Vec<KdNode>,
-    prim_ids: Vec<u32>,
-    tris: Vec<Triangle>,
+    /// Leaf index ranges, each starting at a multiple of the block width;
+    /// padding entries between ranges repeat the previous index.
+    pub(crate) prim_ids: Vec<u32>,
+    /// Block `k` holds the triangles of `prim_ids[k * LANES..][..LANES]`.
+    pub(crate) blocks: Vec<TriBlock>,
+    pub(crate) tris: Vec<Triangle>,
     bounds: Aabb,
     stats: TreeStats,
 }
@@ -108,11 +122,13 @@ impl KdTree {
         start: Instant,
     ) -> Self {
         let BuiltTree {
-            nodes,
+            mut nodes,
             prim_ids,
             bounds,
             depth,
         } = built;
+        let references = prim_ids.len();
+        let (prim_ids, blocks) = pack_leaves(&mut nodes, &prim_ids, &tris);
         let leaves = nodes.iter().filter(|n| n.is_leaf()).count();
         let empty_leaves = nodes.iter().filter(|n| n.is_leaf() && n.prim_count() == 0).count();
         let stats = TreeStats {
@@ -122,13 +138,18 @@ impl KdTree {
             nodes: nodes.len(),
             leaves,
             empty_leaves,
-            references: prim_ids.len(),
+            references,
             depth,
             build_ms: start.elapsed().as_secs_f64() * 1e3,
+            bytes: size_of_val(nodes.as_slice())
+                + size_of_val(prim_ids.as_slice())
+                + size_of_val(blocks.as_slice())
+                + size_of_val(tris.as_slice()),
         };
         let tree = Self {
             nodes,
             prim_ids,
+            blocks,
             tris,
             bounds,
             stats,
@@ -191,15 +212,13 @@ impl KdTree {
     pub fn intersect_within(&self, ray: &Ray, closest: &mut f32) -> Option<Hit> {
         let (t0, t1) = self.bounds.clip(&ray.with_interval(ray.t_min, *closest))?;
         let mut best = None;
-        let tris = &self.tris;
-        let ids = &self.prim_ids;
+        let br = BlockRay::new(ray);
         traverse(&self.nodes, ray, t0, t1, closest, |leaf, closest| {
-            let off = leaf.prim_offset() as usize;
-            for &p in &ids[off..off + leaf.prim_count() as usize] {
-                if let Some((t, b1, b2)) = intersect_triangle(ray, &tris[p as usize], *closest) {
-                    *closest = t;
-                    best = Some(Hit { t, prim: p, b1, b2 });
-                }
+            if let Some((prim, (t, b1, b2))) =
+                leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, &self.tris, *closest)
+            {
+                *closest = t;
+                best = Some(Hit { t, prim, b1, b2 });
             }
             false
         });
@@ -213,13 +232,9 @@ impl KdTree {
             return false;
         };
         let mut closest = ray.t_max;
-        let tris = &self.tris;
-        let ids = &self.prim_ids;
+        let br = BlockRay::new(ray);
         traverse(&self.nodes, ray, t0, t1, &mut closest, |leaf, closest| {
-            let off = leaf.prim_offset() as usize;
-            ids[off..off + leaf.prim_count() as usize]
-                .iter()
-                .any(|&p| intersect_triangle(ray, &tris[p as usize], *closest).is_some())
+            leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, &self.tris, *closest)
         })
     }
 
@@ -289,6 +304,26 @@ impl KdTree {
                 let Some(list) = self.prim_ids.get(off..off + cnt) else {
                     return err(format!("leaf {i} range {off}+{cnt} outside the index array"));
                 };
+                if off % LANES != 0 {
+                    return err(format!("leaf {i} range starts at {off}, not at a block boundary"));
+                }
+                let Some(padded) = self.prim_ids.get(off..off + cnt.div_ceil(LANES) * LANES) else {
+                    return err(format!("leaf {i}: padded range {off}+{cnt} outside the index array"));
+                };
+                for (k, &p) in padded.iter().enumerate() {
+                    let expect = list[k.min(cnt - 1)];
+                    let block = self.blocks.get((off + k) / LANES);
+                    let same = block.is_some_and(|b| {
+                        let packed = b.triangle(k % LANES);
+                        let stored = self.tris.get(p as usize);
+                        stored.is_some_and(|t| {
+                            (0..3).all(|v| packed[v].to_array().map(f32::to_bits) == t[v].to_array().map(f32::to_bits))
+                        })
+                    });
+                    if p != expect || !same {
+                        return err(format!("leaf {i}: block lane {k} does not hold triangle {expect}"));
+                    }
+                }
                 let mut sorted = list.to_vec();
                 sorted.sort_unstable();
                 if sorted.windows(2).any(|w| w[0] == w[1]) {

@@ -35,6 +35,7 @@ mod fast_build;
 mod hit;
 mod kdnode;
 mod kdtree;
+mod leaf_blocks;
 mod numeric;
 mod ray;
 mod sah_build;

@@ -28,10 +28,13 @@ pub struct SahParams {
     pub traversal_cost: f32,
     /// Cost of one ray/triangle test.
     ///
-    /// NOTE: the default 0.25 comes from `examples/sah_sweep.rs` (100k-tri
-    /// mesh, one core): against 0.5 it builds 0.7x the time with 0.4x the
-    /// nodes and traces as fast or faster (random rays +10-15%); 0.15 starts
-    /// to lose trace speed. Figures in docs/PERFORMANCE.md.
+    /// NOTE: the default 0.1 comes from `examples/sah_sweep.rs` and the
+    /// interleaved runs of `examples/ab_ki.rs` (10k/100k/1M-tri meshes, one
+    /// core). Leaves test their triangles four at a time (`leaf_blocks.rs`),
+    /// so a reference costs less than a scalar test: against the earlier
+    /// 0.25 it builds in about half the time with 0.3x the nodes and traces
+    /// 10-20% faster; 0.08 no longer gains consistently. Figures in
+    /// docs/PERFORMANCE.md.
     pub intersection_cost: f32,
     /// Factor (< 1) applied to the cost of a split with an empty side.
     pub empty_bonus: f32,
@@ -50,7 +53,7 @@ impl Default for SahParams {
     fn default() -> Self {
         Self {
             traversal_cost: 1.0,
-            intersection_cost: 0.25,
+            intersection_cost: 0.1,
             empty_bonus: 0.8,
             max_depth: None,
             binned_above: Some(DEFAULT_BINNED_ABOVE),
