@@ -132,8 +132,35 @@ impl BlockRay {
     }
 }
 
-/// Tests the triangles of one leaf (`ids` and `blocks` as made by
-/// [`pack_leaves`]) and returns the closest hit below `t_max` with its index.
+/// Calls `visit(prim)` for each triangle of `leaf` that passes the block
+/// pre-test, in leaf order, until `visit` returns `true` (then returns
+/// `true`). `ids` and `blocks` are as made by [`pack_leaves`].
+#[inline]
+fn for_each_candidate(
+    br: &BlockRay,
+    leaf: KdNode,
+    ids: &[u32],
+    blocks: &[TriBlock],
+    mut visit: impl FnMut(u32) -> bool,
+) -> bool {
+    let off = leaf.prim_offset() as usize;
+    let first = off / LANES;
+    let count = (leaf.prim_count() as usize).div_ceil(LANES);
+    for (k, b) in blocks[first..first + count].iter().enumerate() {
+        let mut m = br.candidates(b);
+        while m != 0 {
+            let lane = m.trailing_zeros() as usize;
+            m &= m - 1;
+            if visit(ids[off + k * LANES + lane]) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Tests the triangles of one leaf and returns the closest hit below
+/// `t_max` with its triangle index.
 #[inline]
 pub(crate) fn leaf_closest(
     ray: &Ray,
@@ -144,22 +171,14 @@ pub(crate) fn leaf_closest(
     tris: &[Triangle],
     mut t_max: f32,
 ) -> Option<(u32, TriHit)> {
-    let off = leaf.prim_offset() as usize;
-    let first = off / LANES;
-    let count = (leaf.prim_count() as usize).div_ceil(LANES);
     let mut best = None;
-    for (k, b) in blocks[first..first + count].iter().enumerate() {
-        let mut m = br.candidates(b);
-        while m != 0 {
-            let lane = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let p = ids[off + k * LANES + lane];
-            if let Some(h) = intersect_triangle(ray, &tris[p as usize], t_max) {
-                t_max = h.0;
-                best = Some((p, h));
-            }
+    for_each_candidate(br, leaf, ids, blocks, |p| {
+        if let Some(h) = intersect_triangle(ray, &tris[p as usize], t_max) {
+            t_max = h.0;
+            best = Some((p, h));
         }
-    }
+        false
+    });
     best
 }
 
@@ -174,21 +193,9 @@ pub(crate) fn leaf_any(
     tris: &[Triangle],
     t_max: f32,
 ) -> bool {
-    let off = leaf.prim_offset() as usize;
-    let first = off / LANES;
-    let count = (leaf.prim_count() as usize).div_ceil(LANES);
-    for (k, b) in blocks[first..first + count].iter().enumerate() {
-        let mut m = br.candidates(b);
-        while m != 0 {
-            let lane = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let p = ids[off + k * LANES + lane];
-            if intersect_triangle(ray, &tris[p as usize], t_max).is_some() {
-                return true;
-            }
-        }
-    }
-    false
+    for_each_candidate(br, leaf, ids, blocks, |p| {
+        intersect_triangle(ray, &tris[p as usize], t_max).is_some()
+    })
 }
 
 #[cfg(test)]
