@@ -214,9 +214,7 @@ impl KdTree {
         let mut best = None;
         let br = BlockRay::new(ray);
         traverse(&self.nodes, ray, t0, t1, closest, |leaf, closest| {
-            if let Some((prim, (t, b1, b2))) =
-                leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, &self.tris, *closest)
-            {
+            if let Some((prim, (t, b1, b2))) = leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest) {
                 *closest = t;
                 best = Some(Hit { t, prim, b1, b2 });
             }
@@ -234,7 +232,7 @@ impl KdTree {
         let mut closest = ray.t_max;
         let br = BlockRay::new(ray);
         traverse(&self.nodes, ray, t0, t1, &mut closest, |leaf, closest| {
-            leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, &self.tris, *closest)
+            leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest)
         })
     }
 

@@ -35,12 +35,12 @@ pub(crate) struct TriBlock {
 }
 
 impl TriBlock {
-    /// The block holding `tris`; a short list is padded by repeating its last
-    /// triangle (a repeated lane finds the same hit, which the closest-hit
-    /// bound then rejects).
-    fn pack(tris: &[&Triangle]) -> Self {
-        debug_assert!(!tris.is_empty() && tris.len() <= LANES);
-        let lane = |i: usize| tris[i.min(tris.len() - 1)];
+    /// The block holding the triangles `ids` of `tris`; a short list is
+    /// padded by repeating its last triangle (a repeated lane finds the same
+    /// hit, which the closest-hit bound then rejects).
+    fn pack(ids: &[u32], tris: &[Triangle]) -> Self {
+        debug_assert!(!ids.is_empty() && ids.len() <= LANES);
+        let lane = |i: usize| &tris[ids[i.min(ids.len() - 1)] as usize];
         let coord =
             |vert: usize, axis: usize| f32x4::from(std::array::from_fn::<f32, LANES, _>(|i| lane(i)[vert][axis]));
         Self {
@@ -48,7 +48,8 @@ impl TriBlock {
         }
     }
 
-    /// Lane `i`'s triangle as stored (for validation).
+    /// Lane `i`'s triangle as stored.
+    #[inline]
     pub(crate) fn triangle(&self, i: usize) -> Triangle {
         let c = |vert: usize, axis: usize| self.v[vert][axis].to_array()[i];
         std::array::from_fn(|vert| glam::Vec3::new(c(vert, 0), c(vert, 1), c(vert, 2)))
@@ -72,8 +73,7 @@ pub(crate) fn pack_leaves(nodes: &mut [KdNode], ids: &[u32], tris: &[Triangle]) 
         let list = &ids[off..off + cnt];
         *n = KdNode::leaf(new_ids.len() as u32, cnt as u32);
         for chunk in list.chunks(LANES) {
-            let refs: Vec<&Triangle> = chunk.iter().map(|&p| &tris[p as usize]).collect();
-            blocks.push(TriBlock::pack(&refs));
+            blocks.push(TriBlock::pack(chunk, tris));
             new_ids.extend_from_slice(chunk);
             let last = chunk[chunk.len() - 1];
             new_ids.resize(new_ids.len() + LANES - chunk.len(), last);
@@ -132,16 +132,20 @@ impl BlockRay {
     }
 }
 
-/// Calls `visit(prim)` for each triangle of `leaf` that passes the block
-/// pre-test, in leaf order, until `visit` returns `true` (then returns
-/// `true`). `ids` and `blocks` are as made by [`pack_leaves`].
+/// Calls `visit(prim, triangle)` for each triangle of `leaf` that passes
+/// the block pre-test, in leaf order, until `visit` returns `true` (then
+/// returns `true`). `ids` and `blocks` are as made by [`pack_leaves`].
+///
+/// PERF: the triangle is read back from the block just tested (bit-identical
+/// to the triangle array's copy, checked by `validate`), not from the
+/// triangle array, which for incoherent rays is one more cache miss.
 #[inline]
 fn for_each_candidate(
     br: &BlockRay,
     leaf: KdNode,
     ids: &[u32],
     blocks: &[TriBlock],
-    mut visit: impl FnMut(u32) -> bool,
+    mut visit: impl FnMut(u32, &Triangle) -> bool,
 ) -> bool {
     let off = leaf.prim_offset() as usize;
     let first = off / LANES;
@@ -151,7 +155,7 @@ fn for_each_candidate(
         while m != 0 {
             let lane = m.trailing_zeros() as usize;
             m &= m - 1;
-            if visit(ids[off + k * LANES + lane]) {
+            if visit(ids[off + k * LANES + lane], &b.triangle(lane)) {
                 return true;
             }
         }
@@ -168,12 +172,11 @@ pub(crate) fn leaf_closest(
     leaf: KdNode,
     ids: &[u32],
     blocks: &[TriBlock],
-    tris: &[Triangle],
     mut t_max: f32,
 ) -> Option<(u32, TriHit)> {
     let mut best = None;
-    for_each_candidate(br, leaf, ids, blocks, |p| {
-        if let Some(h) = intersect_triangle(ray, &tris[p as usize], t_max) {
+    for_each_candidate(br, leaf, ids, blocks, |p, tri| {
+        if let Some(h) = intersect_triangle(ray, tri, t_max) {
             t_max = h.0;
             best = Some((p, h));
         }
@@ -184,17 +187,9 @@ pub(crate) fn leaf_closest(
 
 /// `true` when some triangle of the leaf is hit below `t_max`.
 #[inline]
-pub(crate) fn leaf_any(
-    ray: &Ray,
-    br: &BlockRay,
-    leaf: KdNode,
-    ids: &[u32],
-    blocks: &[TriBlock],
-    tris: &[Triangle],
-    t_max: f32,
-) -> bool {
-    for_each_candidate(br, leaf, ids, blocks, |p| {
-        intersect_triangle(ray, &tris[p as usize], t_max).is_some()
+pub(crate) fn leaf_any(ray: &Ray, br: &BlockRay, leaf: KdNode, ids: &[u32], blocks: &[TriBlock], t_max: f32) -> bool {
+    for_each_candidate(br, leaf, ids, blocks, |_, tri| {
+        intersect_triangle(ray, tri, t_max).is_some()
     })
 }
 
@@ -269,12 +264,12 @@ mod tests {
                     for t_max in [ray.t_max, 1.5] {
                         let list = tree.leaf_primitives(leaf);
                         let want = scalar_closest(&ray, list, &tris, t_max);
-                        let got = leaf_closest(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, &tris, t_max);
+                        let got = leaf_closest(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, t_max);
                         let bits = |h: Option<(u32, TriHit)>| {
                             h.map(|(p, (t, u, v))| (p, t.to_bits(), u.to_bits(), v.to_bits()))
                         };
                         assert_eq!(bits(got), bits(want), "{name}: closest differs for {ray:?}");
-                        let any = leaf_any(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, &tris, t_max);
+                        let any = leaf_any(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, t_max);
                         assert_eq!(any, want.is_some(), "{name}: any-hit differs for {ray:?}");
                         tested += 1;
                         hits += usize::from(want.is_some());

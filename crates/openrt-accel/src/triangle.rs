@@ -31,9 +31,9 @@ use crate::numeric::gamma;
 /// PERF: the watertight test needs the raw vertices (any precomputed plane or
 /// edge data would be rounded differently in adjacent triangles and break
 /// watertightness), so a triangle is 36 contiguous bytes read in one go.
-/// Kd-tree leaves keep a copy of their triangles' vertices in SIMD blocks
-/// for the edge pre-test (`leaf_blocks.rs`) and read this array only for
-/// the few triangles that pass it.
+/// Kd-tree leaves keep a bit-identical copy of their triangles' vertices in
+/// SIMD blocks for the edge pre-test (`leaf_blocks.rs`), and traversal reads
+/// the few triangles that pass it from there too, not from this array.
 pub type Triangle = [Vec3; 3];
 
 /// Result of the triangle kernel: `(t, b1, b2)`.
