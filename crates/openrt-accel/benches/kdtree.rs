@@ -125,9 +125,14 @@ fn summary() {
                 // median of the seven paired ratios: both sides of a pair see
                 // the same machine load (this machine is shared and noisy).
                 let (mut kd, mut peer, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
-                for _ in 0..7 {
+                // NOTE: round 0 is a warm-up, not recorded: the first pass
+                // after a build ran up to 20% slower (cold caches, and
+                // Embree's build threads still winding down beside it).
+                for round in 0..8 {
                     let k = kd_pass();
-                    kd.push(k);
+                    if round > 0 {
+                        kd.push(k);
+                    }
                     #[cfg(feature = "embree")]
                     {
                         let t = Instant::now();
@@ -137,8 +142,10 @@ fn summary() {
                             rays.iter().filter(|r| emb.occluded(r)).count()
                         });
                         let e = t.elapsed().as_secs_f64();
-                        peer.push(e);
-                        ratios.push(e / k);
+                        if round > 0 {
+                            peer.push(e);
+                            ratios.push(e / k);
+                        }
                     }
                 }
                 let kd_mrays = rays.len() as f64 / median(&mut kd) / 1e6;
