@@ -89,7 +89,7 @@ impl KdTree {
         let start = Instant::now();
         let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
         let built = build_sah(&tris, &valid, params)?;
-        Ok(Self::finish(tris, &valid, built, BuilderKind::Sah, start))
+        Self::finish(tris, &valid, built, BuilderKind::Sah, start)
     }
 
     /// Builds a tree with the cheap builder for unstructured motion
@@ -103,7 +103,7 @@ impl KdTree {
         let start = Instant::now();
         let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
         let built = build_fast(&tris, &valid, params)?;
-        Ok(Self::finish(tris, &valid, built, BuilderKind::Fast, start))
+        Self::finish(tris, &valid, built, BuilderKind::Fast, start)
     }
 
     /// Builds with the given builder and its default parameters.
@@ -120,7 +120,7 @@ impl KdTree {
         built: BuiltTree,
         builder: BuilderKind,
         start: Instant,
-    ) -> Self {
+    ) -> Result<Self, AccelError> {
         let BuiltTree {
             mut nodes,
             prim_ids,
@@ -128,7 +128,7 @@ impl KdTree {
             depth,
         } = built;
         let references = prim_ids.len();
-        let (prim_ids, blocks) = pack_leaves(&mut nodes, &prim_ids, &tris);
+        let (prim_ids, blocks) = pack_leaves(&mut nodes, &prim_ids, &tris)?;
         let leaves = nodes.iter().filter(|n| n.is_leaf()).count();
         let empty_leaves = nodes.iter().filter(|n| n.is_leaf() && n.prim_count() == 0).count();
         let stats = TreeStats {
@@ -162,7 +162,7 @@ impl KdTree {
         {
             panic!("{builder:?} build produced an invalid tree: {e}");
         }
-        tree
+        Ok(tree)
     }
 
     /// Bounds of the valid triangles (the root cell).

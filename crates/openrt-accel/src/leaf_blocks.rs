@@ -20,7 +20,7 @@ use wide::f32x4;
 
 use crate::kdnode::KdNode;
 use crate::triangle::{TriHit, intersect_triangle};
-use crate::{Ray, Triangle};
+use crate::{AccelError, Ray, Triangle};
 
 /// Triangles per block (one SSE register per coordinate).
 pub(crate) const LANES: usize = 4;
@@ -59,13 +59,23 @@ impl TriBlock {
 /// Re-lays out the leaves of a built tree so that each leaf's index range
 /// starts at a multiple of [`LANES`] (padding entries repeat the leaf's last
 /// index and belong to no leaf range), and packs the blocks: block `k` holds
-/// the triangles of `ids[k * LANES..]`.
-pub(crate) fn pack_leaves(nodes: &mut [KdNode], ids: &[u32], tris: &[Triangle]) -> (Vec<u32>, Vec<TriBlock>) {
+/// the triangles of `ids[k * LANES..]`. Fails when the padded index array
+/// outgrows the leaves' 32-bit offsets.
+pub(crate) fn pack_leaves(
+    nodes: &mut [KdNode],
+    ids: &[u32],
+    tris: &[Triangle],
+) -> Result<(Vec<u32>, Vec<TriBlock>), AccelError> {
     let padded: usize = nodes
         .iter()
         .filter(|n| n.is_leaf())
         .map(|n| (n.prim_count() as usize).div_ceil(LANES) * LANES)
         .sum();
+    if u32::try_from(padded).is_err() {
+        return Err(AccelError::TooManyNodes {
+            limit: u32::MAX as usize,
+        });
+    }
     let mut new_ids = Vec::with_capacity(padded);
     let mut blocks = Vec::with_capacity(padded / LANES);
     for n in nodes.iter_mut().filter(|n| n.is_leaf()) {
@@ -79,7 +89,7 @@ pub(crate) fn pack_leaves(nodes: &mut [KdNode], ids: &[u32], tris: &[Triangle]) 
             new_ids.resize(new_ids.len() + LANES - chunk.len(), last);
         }
     }
-    (new_ids, blocks)
+    Ok((new_ids, blocks))
 }
 
 /// The per-ray constants of the pre-test, splatted once per query.

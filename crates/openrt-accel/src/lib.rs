@@ -4,6 +4,9 @@
 //! object kd-trees built with the full SAH, and iterative front-to-back
 //! traversal (closest hit and any hit). It knows nothing of scenes, objects
 //! or shading; the two-level layer in `openrt-core` sits on top of it.
+//! Leaves test their triangles four at a time (SIMD edge functions, then the
+//! exact scalar test for the few that pass), with results bit-identical to
+//! one scalar test per triangle.
 //!
 //! Papers behind it:
 //! - Woop, Benthin & Wald, *Watertight Ray/Triangle Intersection*, JCGT 2013.
