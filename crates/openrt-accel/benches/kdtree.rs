@@ -45,6 +45,13 @@ fn median_secs(reps: usize, mut f: impl FnMut()) -> f64 {
     median(&mut v)
 }
 
+/// Seconds for one pass of `query` over `rays` (hits counted so nothing is optimised away).
+fn pass_secs(rays: &[Ray], query: impl Fn(&Ray) -> bool) -> f64 {
+    let t = Instant::now();
+    black_box(rays.iter().filter(|r| query(r)).count());
+    t.elapsed().as_secs_f64()
+}
+
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -112,15 +119,6 @@ fn summary() {
         for (kind, rays) in ray_sets(&tris) {
             for query in ["closest", "occluded"] {
                 let closest = query == "closest";
-                let kd_pass = || {
-                    let t = Instant::now();
-                    black_box(if closest {
-                        rays.iter().filter(|r| tree.intersect(r).is_some()).count()
-                    } else {
-                        rays.iter().filter(|r| tree.occluded(r)).count()
-                    });
-                    t.elapsed().as_secs_f64()
-                };
                 // NOTE: kd and Embree passes alternate, and the ratio is the
                 // median of the seven paired ratios: both sides of a pair see
                 // the same machine load (this machine is shared and noisy).
@@ -129,19 +127,21 @@ fn summary() {
                 // after a build ran up to 20% slower (cold caches, and
                 // Embree's build threads still winding down beside it).
                 for round in 0..8 {
-                    let k = kd_pass();
+                    let k = if closest {
+                        pass_secs(&rays, |r| tree.intersect(r).is_some())
+                    } else {
+                        pass_secs(&rays, |r| tree.occluded(r))
+                    };
                     if round > 0 {
                         kd.push(k);
                     }
                     #[cfg(feature = "embree")]
                     {
-                        let t = Instant::now();
-                        black_box(if closest {
-                            rays.iter().filter(|r| emb.intersect(r).is_some()).count()
+                        let e = if closest {
+                            pass_secs(&rays, |r| emb.intersect(r).is_some())
                         } else {
-                            rays.iter().filter(|r| emb.occluded(r)).count()
-                        });
-                        let e = t.elapsed().as_secs_f64();
+                            pass_secs(&rays, |r| emb.occluded(r))
+                        };
                         if round > 0 {
                             peer.push(e);
                             ratios.push(e / k);

@@ -68,6 +68,8 @@ pub struct KdTree {
     pub(crate) prim_ids: Vec<u32>,
     /// Block `k` holds the triangles of `prim_ids[k * LANES..][..LANES]`.
     pub(crate) blocks: Vec<TriBlock>,
+    /// The triangles as given (`Hit::prim` indexes them); traversal reads
+    /// the blocks, validation and the API read these.
     pub(crate) tris: Vec<Triangle>,
     bounds: Aabb,
     stats: TreeStats,
