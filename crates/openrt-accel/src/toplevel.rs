@@ -12,10 +12,12 @@
 //!
 //! Traversal uses the same 8-byte nodes and [`crate::traverse`] as object trees.
 //!
-//! PERF: the build makes two passes over a node's instances (choose the
-//! plane, then partition and count), both without data-dependent branches,
-//! into one stack-disciplined arena (no allocation per node); the upper
-//! levels are built on several threads and stitched.
+//! PERF: per node, one SIMD pass rules out the axes on which all instances
+//! overlap (most nodes that end as leaves stop there); on an axis left, one
+//! pass finds the two candidates and one counts both sides, and a final pass
+//! partitions, all without data-dependent branches, into one
+//! stack-disciplined arena (no allocation per node); the upper levels are
+//! built on several threads and stitched.
 
 use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, append_shifted};
 use crate::sah_build::default_max_depth;
@@ -487,7 +489,11 @@ impl Builder {
 /// partitions into `dst` (`2 * src.len()` long) as [`partition`] does.
 fn choose_and_partition(src: &[Item], dst: &mut [Item], cell: &Aabb) -> Option<Split> {
     let n = src.len();
+    let open = shared_open_interval(src);
     for axis in axes_by_extent(cell.extent()) {
+        if open[axis] {
+            continue;
+        }
         let cands = candidates(src, cell, axis);
         let Some(first) = cands[0].or(cands[1]) else {
             continue;
@@ -505,6 +511,32 @@ fn choose_and_partition(src: &[Item], dst: &mut [Item], cell: &Aabb) -> Option<S
         }
     }
     None
+}
+
+/// Per axis: `true` when all boxes share an open interval on it, so that it
+/// has no valid plane.
+///
+/// NOTE: a valid plane p needs a box wholly right of it (min >= p) and one
+/// wholly left (max <= p), so the largest minimum reaches the smallest
+/// maximum. When it does not (the usual case at the bottom of the tree) the
+/// axis is skipped without its candidate and counting passes: exact, the
+/// same tree.
+///
+/// PERF: one SIMD pass for all three axes (two min/max per box). The
+/// per-axis test it replaced, inside [`candidates`], still ran a node that
+/// ends as a leaf through three candidate passes: 10k instances built
+/// 12-13% faster (interleaved `bsp_once 10000 300 1`, best 2.60-2.62 ms
+/// against 2.98-3.01 ms).
+fn shared_open_interval(items: &[Item]) -> [bool; 3] {
+    use wide::f32x4;
+    let mut max_min = f32x4::splat(f32::NEG_INFINITY);
+    let mut min_max = f32x4::splat(f32::INFINITY);
+    for it in items {
+        max_min = max_min.fast_max(f32x4::new([it.min[0], it.min[1], it.min[2], 0.0]));
+        min_max = min_max.fast_min(f32x4::new([it.max[0], it.max[1], it.max[2], 0.0]));
+    }
+    let m = max_min.simd_lt(min_max).to_bitmask();
+    [m & 1 != 0, m & 2 != 0, m & 4 != 0]
 }
 
 /// The three axes, largest extent first (ties: lower axis first).
@@ -549,11 +581,8 @@ fn candidates(items: &[Item], cell: &Aabb, axis: usize) -> [Option<f32>; 2] {
     // from counts against the centre was tried: the extra counters spill
     // and it ran 1.8x slower than this pass plus `side_counts`.)
     let (mut left_of_centre, mut best_l, mut best_r) = (0usize, f32::NEG_INFINITY, f32::INFINITY);
-    let (mut max_min, mut min_max) = (f32::NEG_INFINITY, f32::INFINITY);
     for it in items {
         let (bmin, bmax) = (it.min[axis], it.max[axis]);
-        max_min = if bmin > max_min { bmin } else { max_min };
-        min_max = if bmax < min_max { bmax } else { min_max };
         left_of_centre += usize::from(bmin + bmax < 2.0 * centre);
         let l0 = if bmin <= centre { bmin } else { f32::NEG_INFINITY };
         let l1 = if bmax <= centre { bmax } else { f32::NEG_INFINITY };
@@ -562,14 +591,6 @@ fn candidates(items: &[Item], cell: &Aabb, axis: usize) -> [Option<f32>; 2] {
         let (l, r) = (if l0 > l1 { l0 } else { l1 }, if r0 < r1 { r0 } else { r1 });
         best_l = if l > best_l { l } else { best_l };
         best_r = if r < best_r { r } else { best_r };
-    }
-    // NOTE: a valid plane p needs a box wholly right of it (min >= p) and
-    // one wholly left (max <= p), so the largest min reaches the smallest
-    // max. When it does not (all boxes share an open interval, the usual
-    // case at the bottom of the tree) the axis has no valid plane, and the
-    // counting pass is skipped (exact: the same tree).
-    if max_min < min_max {
-        return [None, None];
     }
     let l = (best_l > lo).then_some(best_l);
     let r = (best_r < hi).then_some(best_r);
@@ -631,11 +652,13 @@ mod tests {
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
-    /// The early-out in [`candidates`] (no candidates when the largest box
-    /// minimum is below the smallest maximum) never hides a valid plane:
-    /// every box boundary strictly inside the cell is tried by brute force.
+    /// The early-out of [`shared_open_interval`] (an axis is skipped when
+    /// the largest box minimum is below the smallest maximum) never hides a
+    /// valid plane: every box boundary strictly inside the cell is tried by
+    /// brute force wherever it fires. Fails if its comparison is made
+    /// non-strict (boxes that only touch would be skipped).
     #[test]
-    fn an_axis_without_candidates_has_no_valid_plane() {
+    fn an_axis_skipped_by_the_early_out_has_no_valid_plane() {
         let mut rng = SmallRng::seed_from_u64(11);
         let mut early_outs = 0;
         for _ in 0..20_000 {
@@ -643,11 +666,7 @@ mod tests {
             let items: Vec<Item> = (0..n)
                 .map(|id| {
                     // Coarse integer coordinates: shared boundaries, flat boxes and nesting are common.
-                    let mut b = Item {
-                        min: [0.0; 3],
-                        max: [0.0; 3],
-                        id,
-                    };
+                    let mut b = Item { id, ..FILLER };
                     for a in 0..3 {
                         let (p, q) = (rng.random_range(0..8) as f32, rng.random_range(0..8) as f32);
                         (b.min[a], b.max[a]) = (p.min(q), p.max(q));
@@ -656,8 +675,8 @@ mod tests {
                 })
                 .collect();
             let cell = Aabb::new(glam::Vec3::splat(0.0), glam::Vec3::splat(7.0));
-            for axis in 0..3 {
-                if candidates(&items, &cell, axis) != [None, None] {
+            for (axis, open) in shared_open_interval(&items).into_iter().enumerate() {
+                if !open {
                     continue;
                 }
                 early_outs += 1;
