@@ -14,8 +14,9 @@
 //!
 //! PERF: per node, one SIMD pass finds the candidates on all three axes at
 //! once and rules out the axes on which all instances overlap (most nodes
-//! that end as leaves stop there); on an axis tried, one pass counts both
-//! sides of both candidates, and a final pass partitions, all without
+//! that end as leaves stop there); on an axis tried, one pass partitions
+//! the instances at the first candidate and counts both sides, kept when
+//! the plane is valid (else the second candidate is tried), all without
 //! data-dependent branches, into one stack-disciplined arena (no allocation
 //! per node); the upper levels are
 //! built on several threads and stitched.
@@ -509,16 +510,20 @@ fn choose_and_partition(src: &[Item], dst: &mut [Item], cell: &Aabb) -> Option<S
         let Some(first) = c0.or(c1) else {
             continue;
         };
-        let planes = [first, c1.unwrap_or(first)];
-        let counts = side_counts(src, axis, planes);
+        let second = c1.filter(|&p| p != first);
+        // PERF: partitioning at once, and again at the second candidate when
+        // the first is not valid, is cheaper than a counting pass first: the
+        // first candidate is valid at 12.6k of 16.3k nodes tried (10k
+        // instances); interleaved `bsp_once 10000 200 1` medians 2.27-2.36
+        // ms against 2.50-2.63 with the counting pass; same tree.
         // Valid: both sides lose instances and at most half of them
         // straddle (a plane that duplicates more costs more than it separates).
-        let valid = |(nl, nr): (usize, usize)| nl < n && nr < n && 2 * (nl + nr - n) <= n;
-        if let Some(k) = (0..2).find(|&k| valid(counts[k])) {
-            let plane = planes[k];
+        let valid = |nl: usize, nr: usize| nl < n && nr < n && 2 * (nl + nr - n) <= n;
+        for plane in std::iter::once(first).chain(second) {
             let (nl, nr) = partition(src, dst, axis, plane);
-            debug_assert_eq!((nl, nr), counts[k]);
-            return Some(Split { axis, plane, nl, nr });
+            if valid(nl, nr) {
+                return Some(Split { axis, plane, nl, nr });
+            }
         }
     }
     None
@@ -532,7 +537,7 @@ fn choose_and_partition(src: &[Item], dst: &mut [Item], cell: &Aabb) -> Option<S
 /// NOTE: a valid plane p needs a box wholly right of it (min >= p) and one
 /// wholly left (max <= p), so the largest minimum reaches the smallest
 /// maximum. When it does not (the usual case at the bottom of the tree) the
-/// axis is skipped without a counting pass: exact, the same tree.
+/// axis is skipped without a partition: exact, the same tree.
 ///
 /// PERF: one SIMD pass for the three axes at once (lane = axis; an item's
 /// box is two aligned loads). It replaced a pass for the early-out plus a
@@ -605,27 +610,6 @@ fn halves(cell: Aabb, axis: usize, plane: f32) -> (Aabb, Aabb) {
     (l, r)
 }
 
-/// Instances left and right of each of two planes (straddlers and boxes
-/// flat in a plane count on both sides), in one pass.
-#[expect(
-    clippy::needless_bitwise_bool,
-    reason = "PERF: non-short-circuit `&` keeps the loop branch-free"
-)]
-fn side_counts(items: &[Item], axis: usize, planes: [f32; 2]) -> [(usize, usize); 2] {
-    let [p, q] = planes;
-    let (mut pl, mut pr, mut ql, mut qr) = (0usize, 0usize, 0usize, 0usize);
-    for it in items {
-        let (bmin, bmax) = (it.lo[axis], it.hi[axis]);
-        let flat_p = (bmin == p) & (bmax == p);
-        pl += usize::from((bmin < p) | flat_p);
-        pr += usize::from((bmax > p) | flat_p);
-        let flat_q = (bmin == q) & (bmax == q);
-        ql += usize::from((bmin < q) | flat_q);
-        qr += usize::from((bmax > q) | flat_q);
-    }
-    [(pl, pr), (ql, qr)]
-}
-
 /// Copies the instances left of `plane` to `dst[..nl]` and those right of
 /// it to `dst[n..n + nr]` (straddlers to both; boxes flat in the plane to
 /// both); returns `(nl, nr)`.
@@ -635,16 +619,26 @@ fn side_counts(items: &[Item], axis: usize, planes: [f32; 2]) -> [(usize, usize)
 )]
 fn partition(src: &[Item], dst: &mut [Item], axis: usize, plane: f32) -> (usize, usize) {
     let n = src.len();
+    assert!(dst.len() >= 2 * n, "partition needs room for both sides");
     let (left, right) = dst.split_at_mut(n);
+    let (left, right) = (left.as_mut_ptr(), right.as_mut_ptr());
     let (mut nl, mut nr) = (0usize, 0usize);
     // PERF: branch-free: every item is written to both sides and the
-    // cursors advance by the side tests (item k lands at most at slot k).
-    for (k, it) in src.iter().enumerate() {
+    // cursors advance by the side tests. Unchecked writes: the bounds checks
+    // were a fifth of the loop's instructions; without them 10k instances
+    // build 2-3% faster (five interleaved `bsp_once 10000 200 1` rounds,
+    // medians 2.17-2.22 ms against 2.21-2.29).
+    for it in src {
         let (bmin, bmax) = (it.lo[axis], it.hi[axis]);
         let flat_on_plane = (bmin == plane) & (bmax == plane);
-        left[nl.min(k)] = *it;
+        // SAFETY: before item k both cursors count items among the first k,
+        // so `nl, nr <= k < n`, and each half of `dst` holds at least `n`
+        // items (asserted above).
+        unsafe {
+            left.add(nl).write(*it);
+            right.add(nr).write(*it);
+        }
         nl += usize::from((bmin < plane) | flat_on_plane);
-        right[nr.min(k)] = *it;
         nr += usize::from((bmax > plane) | flat_on_plane);
     }
     (nl, nr)
@@ -714,7 +708,13 @@ mod tests {
                     if p <= cell.min[axis] || p >= cell.max[axis] {
                         continue;
                     }
-                    let [(nl, nr), _] = side_counts(&items, axis, [p, p]);
+                    let left = items
+                        .iter()
+                        .filter(|it| it.lo[axis] < p || (it.lo[axis] == p && it.hi[axis] == p));
+                    let right = items
+                        .iter()
+                        .filter(|it| it.hi[axis] > p || (it.lo[axis] == p && it.hi[axis] == p));
+                    let (nl, nr) = (left.count(), right.count());
                     let n = items.len();
                     assert!(
                         !(nl < n && nr < n && 2 * (nl + nr - n) <= n),
