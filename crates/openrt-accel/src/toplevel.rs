@@ -296,6 +296,17 @@ impl BspBuilder {
         let mut depth = 0;
         match top? {
             None => nodes.push(KdNode::leaf(0, 0)),
+            // PERF: a tree built by one worker is its arrays as they are
+            // (child indices and list offsets already final): they are moved
+            // out and the worker gets empty ones of the same capacity,
+            // instead of a copy that shifts every node by zero.
+            Some(Top::Task(mut w)) => {
+                let (node_cap, item_cap) = (w.nodes.capacity(), w.items.capacity());
+                nodes = std::mem::replace(&mut w.nodes, Vec::with_capacity(node_cap));
+                leaf_items = std::mem::replace(&mut w.items, Vec::with_capacity(item_cap));
+                depth = w.depth;
+                self.workers.push(*w);
+            }
             Some(top) => {
                 let (n_nodes, n_items) = top.sizes();
                 nodes.reserve(n_nodes);
