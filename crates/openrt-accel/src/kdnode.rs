@@ -34,17 +34,34 @@ pub(crate) fn append_shifted(
     sub_nodes: &[KdNode],
     sub_prims: &[u32],
 ) -> Result<(), crate::AccelError> {
-    let too_many = || crate::AccelError::TooManyNodes {
-        limit: MAX_FIELD as usize,
-    };
-    let at = u32::try_from(nodes.len()).map_err(|_| too_many())?;
-    let prim_at = u32::try_from(prims.len()).map_err(|_| too_many())?;
-    for n in sub_nodes {
-        nodes.push(n.shifted(at, prim_at).ok_or_else(too_many)?);
+    let (at, prim_at) = (nodes.len(), prims.len());
+    if at + sub_nodes.len() > MAX_FIELD as usize || prim_at + sub_prims.len() > u32::MAX as usize {
+        return Err(crate::AccelError::TooManyNodes {
+            limit: MAX_FIELD as usize,
+        });
     }
+    nodes.resize(at + sub_nodes.len(), KdNode::leaf(0, 0));
+    shift_into(&mut nodes[at..], sub_nodes, at as u32, prim_at as u32)?;
     prims.extend_from_slice(sub_prims);
-    if nodes.len() > MAX_FIELD as usize || prims.len() > u32::MAX as usize {
-        return Err(too_many());
+    Ok(())
+}
+
+/// Writes `src` into `dst` (same length) shifted as [`KdNode::shifted`]
+/// does: a subtree's nodes placed at `node_offset` of a larger array whose
+/// leaf lists it joins at `prim_offset`.
+pub(crate) fn shift_into(
+    dst: &mut [KdNode],
+    src: &[KdNode],
+    node_offset: u32,
+    prim_offset: u32,
+) -> Result<(), crate::AccelError> {
+    debug_assert_eq!(dst.len(), src.len());
+    for (d, s) in dst.iter_mut().zip(src) {
+        *d = s
+            .shifted(node_offset, prim_offset)
+            .ok_or(crate::AccelError::TooManyNodes {
+                limit: MAX_FIELD as usize,
+            })?;
     }
     Ok(())
 }

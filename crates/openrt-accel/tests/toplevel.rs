@@ -140,3 +140,35 @@ fn the_tree_does_not_depend_on_the_thread_count_and_builders_reuse_memory() {
         assert_eq!(bsp.nodes(), BspBuilder::new(1).build(&small).unwrap().nodes());
     }
 }
+
+#[test]
+fn unusable_boxes_are_left_out_of_parallel_builds_as_of_serial_ones() {
+    // Empty and non-finite boxes scattered over the input, a whole run of
+    // them included, large enough for the parallel gathering of the boxes.
+    let mut boxes = random_boxes(6_000, 9, 1.5);
+    boxes[0] = Aabb::EMPTY;
+    for i in (1_000..2_100).step_by(7) {
+        boxes[i] = Aabb::EMPTY;
+    }
+    for b in &mut boxes[3_000..4_200] {
+        b.min.x = f32::NAN;
+    }
+    boxes[5_999].max.y = f32::INFINITY;
+    // The oracle: the same tree over the usable boxes alone, its leaf
+    // lists mapped back to the input's indices.
+    let usable: Vec<u32> = (0..boxes.len() as u32)
+        .filter(|&i| !boxes[i as usize].is_empty() && boxes[i as usize].is_finite())
+        .collect();
+    let kept: Vec<Aabb> = usable.iter().map(|&i| boxes[i as usize]).collect();
+    let reference = BspBuilder::new(1).build(&kept).unwrap();
+    for threads in [1, 2, 4] {
+        let bsp = BspBuilder::new(threads).build(&boxes).unwrap();
+        assert_eq!(bsp.nodes(), reference.nodes(), "{threads} threads");
+        assert_eq!(bsp.bounds(), reference.bounds());
+        for &leaf in bsp.nodes().iter().filter(|n| n.is_leaf()) {
+            let mapped: Vec<u32> = reference.leaf_items(leaf).iter().map(|&i| usable[i as usize]).collect();
+            assert_eq!(bsp.leaf_items(leaf), mapped, "{threads} threads");
+        }
+    }
+    BspBuilder::new(4).build(&boxes).unwrap().validate(&boxes).unwrap();
+}
