@@ -3,7 +3,7 @@
 use glam::Vec3;
 
 use crate::Ray;
-use crate::numeric::gamma;
+use crate::numeric::{gamma, step_ulps};
 
 /// An axis-aligned box `[min, max]`; the empty box has `min > max`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -142,12 +142,11 @@ impl Aabb {
     /// a box computed with rounding error still holds what it should.
     #[must_use]
     pub fn enlarged_ulps(&self, ulps: u32) -> Self {
-        let mut b = *self;
-        for _ in 0..ulps {
-            b.min = Vec3::new(b.min.x.next_down(), b.min.y.next_down(), b.min.z.next_down());
-            b.max = Vec3::new(b.max.x.next_up(), b.max.y.next_up(), b.max.z.next_up());
+        let k = i32::try_from(ulps).unwrap_or(i32::MAX);
+        Self {
+            min: self.min.map(|x| step_ulps(x, -k)),
+            max: self.max.map(|x| step_ulps(x, k)),
         }
-        b
     }
 
     /// Clips `ray` to the closed box: returns the parameter interval inside it

@@ -10,3 +10,73 @@ pub(crate) const fn gamma(n: u32) -> f32 {
     let nu = n as f32 * UNIT_ROUNDOFF;
     nu / (1.0 - nu)
 }
+
+/// `x` moved `k` representable values up (`k > 0`) or down (`k < 0`),
+/// saturating at the infinities; NaN stays NaN. The value `k` calls of
+/// `f32::next_up` (or `next_down`) give, except that a zero result is +0.0.
+///
+/// PERF: floats ordered as integers (both zeros at 0), one add: the loop of
+/// `next_up`/`next_down` calls cost ~390 instructions per world box of an
+/// instance (4 ulps, 6 sides), a third of a 10k-instance commit's record pass.
+#[inline]
+#[must_use]
+pub(crate) fn step_ulps(x: f32, k: i32) -> f32 {
+    const INF: i32 = 0x7F80_0000;
+    if x.is_nan() {
+        return x;
+    }
+    // NOTE: the sign-magnitude bits, read as `i32`, map onto a line on which
+    // -0.0 and +0.0 both sit at 0 and the order is the floats' order.
+    let order = |b: i32| if b < 0 { i32::MIN - b } else { b };
+    let key = order(x.to_bits().cast_signed()).saturating_add(k).clamp(-INF, INF);
+    f32::from_bits(order(key).cast_unsigned())
+}
+
+#[cfg(test)]
+mod step_tests {
+    use super::step_ulps;
+
+    #[test]
+    fn stepping_ulps_matches_next_up_and_next_down() {
+        let mut v = vec![
+            0.0,
+            -0.0,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            1.0,
+            -1.0,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            1e6,
+            -3.5e-3,
+        ];
+        let mut s = 0x2545_F491_4F6C_DD1Du64;
+        for _ in 0..2_000 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            v.push(f32::from_bits((s >> 32) as u32));
+        }
+        for x in v {
+            for k in 0..6 {
+                let (mut up, mut down) = (x, x);
+                for _ in 0..k {
+                    up = up.next_up();
+                    down = down.next_down();
+                }
+                for (got, want) in [(step_ulps(x, k), up), (step_ulps(x, -k), down)] {
+                    let same = if want == 0.0 {
+                        got.to_bits() == 0
+                    } else {
+                        got.to_bits() == want.to_bits() || got.is_nan() && want.is_nan()
+                    };
+                    assert!(same, "{x:e} ({:#x}) by {k}: {got:e} against {want:e}", x.to_bits());
+                }
+            }
+        }
+    }
+}

@@ -256,6 +256,16 @@ impl BspBuilder {
         }
     }
 
+    /// Runs `f` on the builder's threads (on the calling thread when it has
+    /// none): other per-frame parallel work (rayon iterators inside `f`)
+    /// shares them, and the pool wakes once for it and the build after it.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+
     /// Builds the tree over `boxes`; item `i` of a leaf is an index into
     /// `boxes`. Empty or non-finite boxes are left out.
     pub fn build(&mut self, boxes: &[Aabb]) -> Result<InstanceBsp, AccelError> {

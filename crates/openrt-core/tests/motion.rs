@@ -149,3 +149,75 @@ fn an_unchanged_box_list_keeps_the_top_level_tree_and_new_geometry_is_seen() {
     assert!(ctx.scene().intersect(&down(0.5)).is_none());
     assert!(ctx.scene().intersect(&down(5.5)).is_some());
 }
+
+#[test]
+fn large_commits_make_their_records_in_parallel_as_small_ones_do() {
+    // Over the parallel threshold (2,048 records), with moves, removals
+    // and a new instance between commits; each record is compared with the
+    // one a single-instance scene makes (the serial path) for the same
+    // object and transform, bit for bit.
+    let mut ctx = Context::new();
+    let (a, b) = (ctx.gen_object(), ctx.gen_object());
+    define_sphere(&mut ctx, a, 64, 0.0);
+    define_sphere(&mut ctx, b, 32, 0.3);
+    let place = |i: usize, frame: usize| {
+        let t = Vec3::new((i % 60) as f32 * 3.0, (i / 60) as f32 * 3.0, 0.0);
+        let moved = i.is_multiple_of(3);
+        let f = if moved { frame as f32 } else { 0.0 };
+        Mat4::from_translation(t + Vec3::Z * f) * Mat4::from_scale(Vec3::new(1.0, 1.0 + 0.1 * f, -1.0))
+    };
+    let mut live: Vec<_> = (0..3_000)
+        .map(|i| {
+            ctx.load_matrix(place(i, 0)).unwrap();
+            (
+                i,
+                if i.is_multiple_of(7) { b } else { a },
+                ctx.instantiate(if i.is_multiple_of(7) { b } else { a }).unwrap(),
+            )
+        })
+        .collect();
+    ctx.commit().unwrap();
+    let single = |object_is_b: bool, m: Mat4| {
+        let mut one = Context::new();
+        let (oa, ob) = (one.gen_object(), one.gen_object());
+        define_sphere(&mut one, oa, 64, 0.0);
+        define_sphere(&mut one, ob, 32, 0.3);
+        one.load_matrix(m).unwrap();
+        one.instantiate(if object_is_b { ob } else { oa }).unwrap();
+        one.commit().unwrap();
+        one.scene().instances()[0].clone()
+    };
+    for frame in 1..3 {
+        for &(i, _, id) in &live {
+            ctx.set_instance_transform(id, place(i, frame)).unwrap();
+        }
+        let gone = live.remove(100 * frame);
+        ctx.remove_instance(gone.2).unwrap();
+        ctx.load_matrix(place(5_000 + frame, frame)).unwrap();
+        live.push((5_000 + frame, a, ctx.instantiate(a).unwrap()));
+        let stats = ctx.commit().unwrap();
+        assert!(!stats.toplevel_reused);
+        let scene = ctx.scene();
+        let records = scene.instances();
+        assert_eq!(records.len(), live.len());
+        let mut by_id: Vec<_> = live.clone();
+        by_id.sort_by_key(|&(_, _, id)| id.index());
+        for (r, &(i, object, id)) in records.iter().zip(&by_id) {
+            assert_eq!((r.id, r.object), (id, object), "frame {frame}: records in slot order");
+            assert_eq!(r.to_world, glam::Affine3A::from_mat4(place(i, frame)));
+        }
+        for r in records.iter().step_by(97) {
+            let (i, object, _) = by_id.iter().find(|e| e.2 == r.id).copied().unwrap();
+            let want = single(object == b, place(i, frame));
+            let bits = |x: &openrt_core::InstanceRecord| {
+                (
+                    x.world_bounds.min.to_array(),
+                    x.world_bounds.max.to_array(),
+                    x.to_object.to_cols_array(),
+                    x.det_sign,
+                )
+            };
+            assert_eq!(bits(r), bits(&want), "frame {frame}, instance {i}");
+        }
+    }
+}
