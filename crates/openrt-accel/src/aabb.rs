@@ -170,7 +170,8 @@ impl Aabb {
         // unpredictable for incoherent rays, most of which miss).
         let (o, d) = (Vec3A::from(ray.origin), Vec3A::from(ray.dir));
         let (lo, hi) = (Vec3A::from(self.min), Vec3A::from(self.max));
-        let (a, b) = ((lo - o) * Vec3A::from(ray.inv_dir), (hi - o) * Vec3A::from(ray.inv_dir));
+        let inv = Vec3A::from(ray.inv_dir);
+        let (a, b) = ((lo - o) * inv, (hi - o) * inv);
         let swap = a.cmpgt(b);
         let near = Vec3A::select(swap, b, a);
         let far = Vec3A::select(swap, a, b) * (1.0 + 2.0 * gamma(3));

@@ -27,7 +27,7 @@
 //! PERF: references live in one stack-disciplined arena (a node's children
 //! are written past the node's own range; no allocation per node).
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, too_many_nodes};
 use crate::sah_build::{BuiltTree, SahParams, default_max_depth};
 use crate::{Aabb, AccelError, Triangle};
 
@@ -180,9 +180,7 @@ impl Builder<'_> {
         }
         let index = self.nodes.len();
         if index >= MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         let scratch = free + 2 * n;
         self.nodes.push(KdNode::interior(plane.axis, plane.pos));
@@ -195,9 +193,7 @@ impl Builder<'_> {
     fn leaf(&mut self, at: usize, n: usize) -> Result<(), AccelError> {
         let offset = self.prim_ids.len();
         if offset > u32::MAX as usize - n || n > MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         self.prim_ids.extend(self.arena[at..at + n].iter().map(|r| r.prim));
         self.nodes.push(KdNode::leaf(offset as u32, n as u32));

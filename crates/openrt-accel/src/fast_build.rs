@@ -11,7 +11,7 @@
 //!   `min_leaf * leaf_growth^depth` primitives;
 //! - depth limited to `depth_factor` times the SAH builder's limit.
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, stitch};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, stitch, too_many_nodes};
 use crate::sah_build::{BuiltTree, default_max_depth};
 use crate::{Aabb, AccelError, Triangle};
 
@@ -122,9 +122,7 @@ impl Fast {
     fn leaf(&mut self, items: &[(u32, Aabb)]) -> Result<(), AccelError> {
         let offset = self.prim_ids.len();
         if offset > u32::MAX as usize - items.len() || items.len() > MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         self.prim_ids.extend(items.iter().map(|i| i.0));
         self.nodes.push(KdNode::leaf(offset as u32, items.len() as u32));
@@ -249,9 +247,7 @@ impl Fast {
         };
         let index = self.nodes.len();
         if index >= MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         self.nodes.push(KdNode::interior(axis, split));
         self.node(lcell, left, depth + 1)?;

@@ -9,6 +9,14 @@ const LEAF: u32 = 3;
 /// Largest child index or primitive count that fits in the 30 upper bits.
 pub(crate) const MAX_FIELD: u32 = (1 << 30) - 1;
 
+/// The error of a tree whose node indices or leaf references outgrow
+/// [`MAX_FIELD`].
+pub(crate) const fn too_many_nodes() -> crate::AccelError {
+    crate::AccelError::TooManyNodes {
+        limit: MAX_FIELD as usize,
+    }
+}
+
 /// A kd-tree node in 8 bytes.
 ///
 /// - interior: `a` holds the split position's bits, the low two bits of `b`
@@ -36,9 +44,7 @@ pub(crate) fn append_shifted(
 ) -> Result<(), crate::AccelError> {
     let (at, prim_at) = (nodes.len(), prims.len());
     if at + sub_nodes.len() > MAX_FIELD as usize || prim_at + sub_prims.len() > u32::MAX as usize {
-        return Err(crate::AccelError::TooManyNodes {
-            limit: MAX_FIELD as usize,
-        });
+        return Err(too_many_nodes());
     }
     nodes.resize(at + sub_nodes.len(), KdNode::leaf(0, 0));
     shift_into(&mut nodes[at..], sub_nodes, at as u32, prim_at as u32)?;
@@ -57,11 +63,7 @@ pub(crate) fn shift_into(
 ) -> Result<(), crate::AccelError> {
     debug_assert_eq!(dst.len(), src.len());
     for (d, s) in dst.iter_mut().zip(src) {
-        *d = s
-            .shifted(node_offset, prim_offset)
-            .ok_or(crate::AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            })?;
+        *d = s.shifted(node_offset, prim_offset).ok_or(too_many_nodes())?;
     }
     Ok(())
 }

@@ -18,7 +18,7 @@
 
 use glam::Vec3;
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, too_many_nodes};
 use crate::{Aabb, AccelError, Triangle};
 
 /// Cost constants of the surface area heuristic.
@@ -232,9 +232,7 @@ impl Builder<'_> {
 
         let index = self.nodes.len();
         if index >= MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         self.nodes.push(KdNode::interior(plane.axis, plane.pos));
         self.node(left_cell, el, nl, depth + 1)?;
@@ -252,9 +250,7 @@ impl Builder<'_> {
         }
         let count = self.prim_ids.len() - offset;
         if offset > u32::MAX as usize || count > MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         self.nodes.push(KdNode::leaf(offset as u32, count as u32));
         Ok(())

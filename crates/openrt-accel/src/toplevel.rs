@@ -20,7 +20,7 @@
 //! data-dependent branches, into one stack-disciplined arena (no allocation
 //! per node); the upper levels are built on several threads and stitched.
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, shift_into};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, shift_into, too_many_nodes};
 use crate::sah_build::default_max_depth;
 use crate::{Aabb, AccelError};
 
@@ -454,9 +454,7 @@ fn assemble(
     let depth = lay_out(top, &mut next, &mut splits, &mut tasks);
     let (n_nodes, n_items) = next;
     let result = if n_nodes > MAX_FIELD as usize || n_items > u32::MAX as usize {
-        Err(AccelError::TooManyNodes {
-            limit: MAX_FIELD as usize,
-        })
+        Err(too_many_nodes())
     } else {
         nodes.resize(n_nodes, KdNode::leaf(0, 0));
         items.resize(n_items, 0);
@@ -583,9 +581,7 @@ impl Builder {
     fn leaf(&mut self, at: usize, n: usize) -> Result<(), AccelError> {
         let offset = self.items.len();
         if offset > u32::MAX as usize - n || n > MAX_FIELD as usize || self.nodes.len() >= MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         self.items.extend(self.arena[at..at + n].iter().map(Item::id));
         self.nodes.push(KdNode::leaf(offset as u32, n as u32));
@@ -602,9 +598,7 @@ impl Builder {
         };
         let index = self.nodes.len();
         if index >= MAX_FIELD as usize {
-            return Err(AccelError::TooManyNodes {
-                limit: MAX_FIELD as usize,
-            });
+            return Err(too_many_nodes());
         }
         let (lcell, rcell) = halves(cell, axis, plane);
         let scratch = free + n + nr;
