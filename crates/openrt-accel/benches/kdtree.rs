@@ -10,7 +10,8 @@ use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
-use openrt_accel::{Aabb, KdTree, Ray, Triangle, meshgen};
+use openrt_accel::oracle::BruteForce;
+use openrt_accel::{Aabb, Hit, KdTree, Ray, Triangle, meshgen};
 
 fn sizes() -> Vec<usize> {
     std::env::var("OPENRT_BENCH_SIZES").ok().map_or_else(
@@ -100,12 +101,31 @@ fn bench_trace(c: &mut Criterion) {
     }
 }
 
+/// Closest hits that disagree with the f64 oracle (`BruteForce::check_closest`)
+/// among a sample of the bench's random rays and of `meshgen::hard_rays`
+/// (aimed at vertices and edges), for each intersector: `(random, hard)`.
+fn oracle_errors(tris: &[Triangle], random: &[Ray], query: impl Fn(&Ray) -> Option<Hit>) -> (usize, usize) {
+    // NOTE: the oracle tests every triangle in f64; the sample keeps it to
+    // about 2e8 triangle tests per set.
+    let n = (200_000_000 / tris.len().max(1)).clamp(200, 2_000);
+    let oracle = BruteForce::new(tris);
+    let errors = |rays: &[Ray]| {
+        rays.iter()
+            .filter(|r| oracle.check_closest(r, query(r)).is_err())
+            .count()
+    };
+    let step = (random.len() / n).max(1);
+    let sample: Vec<Ray> = random.iter().step_by(step).copied().collect();
+    (errors(&sample), errors(&meshgen::hard_rays(tris, n, 3)))
+}
+
 /// One table of medians from this run (7 repetitions each).
 fn summary() {
-    println!("\nsummary (median of 7, this run; ratio: median of 7 paired, interleaved passes)");
+    println!("\nsummary (median of 7, this run; ratio: median of 7 paired, interleaved passes;");
+    println!("robust: against Embree with its ROBUST scene flag, watertight as the kd-tree is)");
     println!(
-        "{:>9} {:>12} {:>8} {:>10} {:>10} {:>10} {:>7}",
-        "tris", "build Mt/s", "rays", "query", "kd Mr/s", "embree", "ratio"
+        "{:>9} {:>12} {:>8} {:>10} {:>10} {:>10} {:>7} {:>7}",
+        "tris", "build Mt/s", "rays", "query", "kd Mr/s", "embree", "ratio", "robust"
     );
     for n in sizes() {
         let tris = mesh(n);
@@ -116,21 +136,25 @@ fn summary() {
         let build = tris.len() as f64 / s / 1e6;
         #[cfg(feature = "embree")]
         let emb = openrt_accel::EmbreeMesh::new(&tris, true).unwrap();
-        for (kind, rays) in ray_sets(&tris) {
+        #[cfg(feature = "embree")]
+        let robust = openrt_accel::EmbreeMesh::with_flags(&tris, true, true).unwrap();
+        let sets = ray_sets(&tris);
+        for (kind, rays) in &sets {
             for query in ["closest", "occluded"] {
                 let closest = query == "closest";
                 // NOTE: kd and Embree passes alternate, and the ratio is the
                 // median of the seven paired ratios: both sides of a pair see
                 // the same machine load (this machine is shared and noisy).
-                let (mut kd, mut peer, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+                let (mut kd, mut peer, mut ratios, mut robust_ratios) =
+                    (Vec::new(), Vec::new(), Vec::new(), Vec::new());
                 // NOTE: round 0 is a warm-up, not recorded: the first pass
                 // after a build ran up to 20% slower (cold caches, and
                 // Embree's build threads still winding down beside it).
                 for round in 0..8 {
                     let k = if closest {
-                        pass_secs(&rays, |r| tree.intersect(r).is_some())
+                        pass_secs(rays, |r| tree.intersect(r).is_some())
                     } else {
-                        pass_secs(&rays, |r| tree.occluded(r))
+                        pass_secs(rays, |r| tree.occluded(r))
                     };
                     if round > 0 {
                         kd.push(k);
@@ -138,29 +162,53 @@ fn summary() {
                     #[cfg(feature = "embree")]
                     {
                         let e = if closest {
-                            pass_secs(&rays, |r| emb.intersect(r).is_some())
+                            pass_secs(rays, |r| emb.intersect(r).is_some())
                         } else {
-                            pass_secs(&rays, |r| emb.occluded(r))
+                            pass_secs(rays, |r| emb.occluded(r))
+                        };
+                        let er = if closest {
+                            pass_secs(rays, |r| robust.intersect(r).is_some())
+                        } else {
+                            pass_secs(rays, |r| robust.occluded(r))
                         };
                         if round > 0 {
                             peer.push(e);
                             ratios.push(e / k);
+                            robust_ratios.push(er / k);
                         }
                     }
                 }
                 let kd_mrays = rays.len() as f64 / median(&mut kd) / 1e6;
-                let (emb_s, ratio) = if peer.is_empty() {
-                    ("-".to_string(), "-".to_string())
+                let (emb_s, ratio, robust_ratio) = if peer.is_empty() {
+                    ("-".to_string(), "-".to_string(), "-".to_string())
                 } else {
                     let e_mrays = rays.len() as f64 / median(&mut peer) / 1e6;
-                    (format!("{e_mrays:.2}"), format!("{:.2}", median(&mut ratios)))
+                    (
+                        format!("{e_mrays:.2}"),
+                        format!("{:.2}", median(&mut ratios)),
+                        format!("{:.2}", median(&mut robust_ratios)),
+                    )
                 };
                 println!(
-                    "{:>9} {build:>12.2} {kind:>8} {query:>10} {kd_mrays:>10.2} {emb_s:>10} {ratio:>7}",
+                    "{:>9} {build:>12.2} {kind:>8} {query:>10} {kd_mrays:>10.2} {emb_s:>10} {ratio:>7} {robust_ratio:>7}",
                     tris.len()
                 );
             }
         }
+        let random = &sets[1].1;
+        let (kd_r, kd_h) = oracle_errors(&tris, random, |r| tree.intersect(r));
+        #[cfg(feature = "embree")]
+        let peers = [("Embree", &emb), ("Embree robust", &robust)]
+            .map(|(name, peer)| {
+                let (r, h) = oracle_errors(&tris, random, |ray| peer.intersect_hit(ray));
+                format!(", {name} {r} + {h}")
+            })
+            .concat();
+        #[cfg(not(feature = "embree"))]
+        let peers = String::new();
+        println!(
+            "          closest hits off the f64 oracle (random + hard rays sampled): kd-tree {kd_r} + {kd_h}{peers}"
+        );
         let st = tree.stats();
         println!(
             "          tree: {} nodes, {} leaves ({} empty), {} refs ({:.2}/tri), depth {}, {:.1} MiB",

@@ -10,22 +10,23 @@ use openrt_accel::{Aabb, KdTree, Ray, meshgen, traverse};
 /// `r` pierces (a plain walk without the traversal's error margins).
 fn cells(tree: &KdTree, r: &Ray, t0: f32, t1: f32) -> (usize, usize) {
     let (mut inner, mut empty) = (0, 0);
-    let mut stack = vec![(0u32, t0, t1)];
+    let mut stack = vec![(Some(0u32), t0, t1)];
     while let Some((i, a, b)) = stack.pop() {
+        // An empty cell has no node (`KdNode::children`).
+        let Some(i) = i else {
+            empty += 1;
+            continue;
+        };
         let nd = tree.nodes()[i as usize];
         if nd.is_leaf() {
-            empty += usize::from(nd.prim_count() == 0);
             continue;
         }
         inner += 1;
         let (o, d, split) = (r.origin[nd.axis()], r.dir[nd.axis()], nd.split());
         let ts = (split - o) / d;
         let below_first = o < split || (o == split && d < 0.0);
-        let (near, far) = if below_first {
-            (i + 1, nd.above_child())
-        } else {
-            (nd.above_child(), i + 1)
-        };
+        let [below, above] = nd.children(i);
+        let (near, far) = if below_first { (below, above) } else { (above, below) };
         if ts.is_nan() || ts <= 0.0 || ts >= b {
             stack.push((near, a, b));
         } else if ts <= a {

@@ -27,7 +27,7 @@
 //! PERF: references live in one stack-disciplined arena (a node's children
 //! are written past the node's own range; no allocation per node).
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, too_many_nodes};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, too_many_nodes};
 use crate::sah_build::{BuiltTree, SahParams, default_max_depth};
 use crate::{Aabb, AccelError, Triangle};
 
@@ -179,7 +179,7 @@ impl Builder<'_> {
             return self.leaf(at, n);
         }
         let index = self.nodes.len();
-        if index >= MAX_FIELD as usize {
+        if index >= MAX_NODES as usize {
             return Err(too_many_nodes());
         }
         let scratch = free + 2 * n;

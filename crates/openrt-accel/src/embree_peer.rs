@@ -3,7 +3,7 @@
 //! Only used to measure: the same triangles and rays go through Embree's
 //! BVH so throughput ratios come from one run on one machine.
 
-use embree3::{BufferUsage, BuildQuality, Device, Format, GeometryKind, IntersectContext, RayHit, Scene};
+use embree3::{BufferUsage, BuildQuality, Device, Format, GeometryKind, IntersectContext, RayHit, Scene, SceneFlags};
 
 use crate::{Ray, Triangle};
 
@@ -18,14 +18,28 @@ impl EmbreeMesh {
     /// Builds an Embree scene over `tris` with the given build quality
     /// (`high` for static objects, `false` for Embree's LOW quality used for moving ones).
     pub fn new(tris: &[Triangle], high_quality: bool) -> Result<Self, String> {
+        Self::with_flags(tris, high_quality, false)
+    }
+
+    /// As [`EmbreeMesh::new`], with Embree's `ROBUST` scene flag when
+    /// `robust`: conservative traversal and a watertight triangle test, the
+    /// guarantees the kd-tree gives, for a like-for-like comparison.
+    pub fn with_flags(tris: &[Triangle], high_quality: bool, robust: bool) -> Result<Self, String> {
         let device = Device::new().map_err(|e| format!("embree device: {e:?}"))?;
-        let scene = mesh_scene(&device, tris, high_quality)?;
+        let flags = if robust { SceneFlags::ROBUST } else { SceneFlags::NONE };
+        let scene = mesh_scene(&device, tris, high_quality, flags)?;
         Ok(Self { scene, _device: device })
     }
 
-    /// Closest hit: `(t, prim)`.
+    /// Closest hit: `(t, prim)`; see [`EmbreeMesh::intersect_hit`] for the barycentrics.
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<(f32, u32)> {
+        self.intersect_hit(ray).map(|h| (h.t, h.prim))
+    }
+
+    /// Closest hit with Embree's barycentrics.
+    #[must_use]
+    pub fn intersect_hit(&self, ray: &Ray) -> Option<crate::Hit> {
         let mut ctx = IntersectContext::incoherent();
         let mut rh = RayHit::from(embree3::Ray::segment(
             ray.origin.to_array(),
@@ -34,7 +48,12 @@ impl EmbreeMesh {
             ray.t_max,
         ));
         self.scene.intersect(&mut ctx, &mut rh);
-        rh.hit.is_valid().then_some((rh.ray.tfar, rh.hit.primID))
+        rh.hit.is_valid().then_some(crate::Hit {
+            t: rh.ray.tfar,
+            prim: rh.hit.primID,
+            b1: rh.hit.u,
+            b2: rh.hit.v,
+        })
     }
 
     /// Any hit.
@@ -58,8 +77,14 @@ pub struct EmbreeTwoLevel {
     device: Device,
 }
 
-fn mesh_scene(device: &Device, tris: &[Triangle], high_quality: bool) -> Result<Scene<'static>, String> {
+fn mesh_scene(
+    device: &Device,
+    tris: &[Triangle],
+    high_quality: bool,
+    flags: SceneFlags,
+) -> Result<Scene<'static>, String> {
     let mut scene = device.create_scene().map_err(|e| format!("embree scene: {e:?}"))?;
+    scene.set_flags(flags);
     let quality = if high_quality {
         BuildQuality::HIGH
     } else {
@@ -93,7 +118,7 @@ impl EmbreeTwoLevel {
         let device = Device::new().map_err(|e| format!("embree device: {e:?}"))?;
         let objs = objects
             .iter()
-            .map(|(t, moving)| mesh_scene(&device, t, !moving))
+            .map(|(t, moving)| mesh_scene(&device, t, !moving, SceneFlags::NONE))
             .collect::<Result<Vec<_>, _>>()?;
         let mut top = device.create_scene().map_err(|e| format!("embree scene: {e:?}"))?;
         top.set_build_quality(BuildQuality::LOW);
@@ -126,7 +151,7 @@ impl EmbreeTwoLevel {
     /// top level is committed.
     pub fn update(&mut self, transforms: &[[f32; 16]], redefined: &[(usize, &[Triangle])]) -> Result<(), String> {
         for &(o, tris) in redefined {
-            self.objects[o] = mesh_scene(&self.device, tris, false)?;
+            self.objects[o] = mesh_scene(&self.device, tris, false, SceneFlags::NONE)?;
             for (inst, m) in self.instances.iter_mut().zip(transforms) {
                 if inst.0 == o {
                     self.top.detach_geometry(inst.1);

@@ -11,7 +11,7 @@
 //!   `min_leaf * leaf_growth^depth` primitives;
 //! - depth limited to `depth_factor` times the SAH builder's limit.
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, stitch, too_many_nodes};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, stitch, too_many_nodes};
 use crate::sah_build::{BuiltTree, default_max_depth};
 use crate::{Aabb, AccelError, Triangle};
 
@@ -246,7 +246,7 @@ impl Fast {
             return Ok(());
         };
         let index = self.nodes.len();
-        if index >= MAX_FIELD as usize {
+        if index >= MAX_NODES as usize {
             return Err(too_many_nodes());
         }
         self.nodes.push(KdNode::interior(axis, split));

@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use crate::fast_build::{FastParams, build_fast};
-use crate::kdnode::{KdNode, MAX_DEPTH};
+use crate::kdnode::{KdNode, MAX_DEPTH, elide_empty_leaves};
 use crate::leaf_blocks::{BlockRay, LANES, TriBlock, leaf_any, leaf_closest, pack_leaves};
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
@@ -33,11 +33,11 @@ pub struct TreeStats {
     pub triangles: usize,
     /// Triangles left out: zero area or non-finite vertices.
     pub dropped: usize,
-    /// Nodes in the flat array.
+    /// Nodes in the flat array (empty cells have none).
     pub nodes: usize,
-    /// Leaves among them.
+    /// Leaf cells, empty ones included.
     pub leaves: usize,
-    /// Empty leaves among those.
+    /// Empty leaf cells among those: flagged in their parent, without a node.
     pub empty_leaves: usize,
     /// Primitive references in leaves (a triangle can be in several).
     pub references: usize,
@@ -133,6 +133,7 @@ impl KdTree {
         let (prim_ids, blocks) = pack_leaves(&mut nodes, &prim_ids, &tris)?;
         let leaves = nodes.iter().filter(|n| n.is_leaf()).count();
         let empty_leaves = nodes.iter().filter(|n| n.is_leaf() && n.prim_count() == 0).count();
+        let nodes = elide_empty_leaves(&nodes)?;
         let stats = TreeStats {
             builder,
             triangles: tris.len(),
@@ -262,8 +263,9 @@ impl KdTree {
                 let (mut l, mut r) = (cell, cell);
                 l.max[n.axis()] = n.split();
                 r.min[n.axis()] = n.split();
-                stack.push((i + 1, l));
-                stack.push((n.above_child(), r));
+                let [below, above] = n.children(i);
+                stack.extend(below.map(|b| (b, l)));
+                stack.extend(above.map(|a| (a, r)));
             }
         }
         cost
@@ -301,6 +303,9 @@ impl KdTree {
             let n = self.nodes[iu];
             if n.is_leaf() {
                 let (off, cnt) = (n.prim_offset() as usize, n.prim_count() as usize);
+                if cnt == 0 && i != 0 {
+                    return err(format!("leaf {i} is empty: empty cells have no node"));
+                }
                 let Some(list) = self.prim_ids.get(off..off + cnt) else {
                     return err(format!("leaf {i} range {off}+{cnt} outside the index array"));
                 };
@@ -345,15 +350,26 @@ impl KdTree {
             if !split.is_finite() || split < cell.min[axis] || split > cell.max[axis] {
                 return err(format!("node {i}: split {split} on axis {axis} outside its cell"));
             }
-            let above = n.above_child();
-            if above <= i + 1 {
-                return err(format!("node {i}: above child {above} does not point forward"));
+            let (above, first) = (n.above_child(), if n.below_empty() { i + 1 } else { i + 2 });
+            match n.children(i) {
+                [None, None] => return err(format!("node {i}: both cells empty, not a leaf")),
+                [_, Some(a)] if a < first => {
+                    return err(format!("node {i}: above child {a} does not point past its below child"));
+                }
+                [None, Some(a)] if a != i + 1 => {
+                    return err(format!("node {i}: below cell empty but above child {a} is not next"));
+                }
+                _ => {}
             }
             let (mut l, mut r) = (cell, cell);
             l.max[axis] = split;
             r.min[axis] = split;
-            stack.push((i + 1, l, depth + 1));
-            stack.push((above, r, depth + 1));
+            if !n.below_empty() {
+                stack.push((i + 1, l, depth + 1));
+            }
+            if above != 0 {
+                stack.push((above, r, depth + 1));
+            }
         }
         if let Some(i) = seen.iter().position(|s| !s) {
             return err(format!("node {i} is unreachable"));
@@ -390,11 +406,12 @@ impl KdTree {
                 continue;
             }
             let (axis, split) = (n.axis(), f64::from(n.split()));
+            let [below, above] = n.children(i);
             if p[axis] <= split {
-                stack.push(i + 1);
+                stack.extend(below);
             }
             if p[axis] >= split {
-                stack.push(n.above_child());
+                stack.extend(above);
             }
         }
         false

@@ -169,6 +169,30 @@ pub fn camera_rays(eye: Vec3, at: Vec3, w: usize, h: usize, fov_deg: f32) -> Vec
     rays
 }
 
+/// `n` rays aimed at the vertices, edge midpoints and centroids of random
+/// triangles of `tris` from random origins in a cube of side 6 about the
+/// origin: where a triangle test that is not watertight lets rays through
+/// shared edges and vertices of a closed mesh.
+#[must_use]
+pub fn hard_rays(tris: &[Triangle], n: usize, seed: u64) -> Vec<Ray> {
+    if tris.is_empty() {
+        return Vec::new();
+    }
+    let mut rng = SmallRng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let t = &tris[rng.random_range(0..tris.len())];
+            let target = match rng.random_range(0..3) {
+                0 => t[rng.random_range(0..3)],
+                1 => (t[0] + t[1]) * 0.5,
+                _ => (t[0] + t[1] + t[2]) / 3.0,
+            };
+            let from = Vec3::new(rng.random(), rng.random(), rng.random()) * 6.0 - 3.0;
+            Ray::new(from, target - from, 0.0, f32::INFINITY)
+        })
+        .collect()
+}
+
 /// `n` incoherent rays: origins uniform in `bounds` grown by half its
 /// extent, directions uniform on the sphere.
 #[must_use]

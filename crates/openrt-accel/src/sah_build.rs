@@ -18,7 +18,7 @@
 
 use glam::Vec3;
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, too_many_nodes};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, too_many_nodes};
 use crate::{Aabb, AccelError, Triangle};
 
 /// Cost constants of the surface area heuristic.
@@ -231,7 +231,7 @@ impl Builder<'_> {
         let (el, er) = self.split_events(events, &both, &left_cell, &right_cell);
 
         let index = self.nodes.len();
-        if index >= MAX_FIELD as usize {
+        if index >= MAX_NODES as usize {
             return Err(too_many_nodes());
         }
         self.nodes.push(KdNode::interior(plane.axis, plane.pos));

@@ -20,7 +20,7 @@
 //! data-dependent branches, into one stack-disciplined arena (no allocation
 //! per node); the upper levels are built on several threads and stitched.
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, shift_into, too_many_nodes};
+use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, shift_into, too_many_nodes};
 use crate::sah_build::default_max_depth;
 use crate::{Aabb, AccelError};
 
@@ -123,7 +123,7 @@ impl InstanceBsp {
                 continue;
             }
             let (axis, split) = (n.axis(), n.split());
-            if !(split >= cell.min[axis] && split <= cell.max[axis]) || n.above_child() <= i + 1 {
+            if !(split >= cell.min[axis] && split <= cell.max[axis]) || n.above_child() <= i + 1 || n.below_empty() {
                 return err(format!("node {i}: bad split {split} or child {}", n.above_child()));
             }
             let (mut l, mut r) = (cell, cell);
@@ -428,7 +428,7 @@ fn lay_out(top: Top, next: &mut (usize, usize), splits: &mut Vec<(usize, KdNode)
             let dl = lay_out(*left, next, splits, tasks);
             let mut node = KdNode::interior(axis, plane);
             // NOTE: the index fits: `assemble` checks the node count first.
-            node.set_above_child(u32::try_from(next.0).unwrap_or(MAX_FIELD).min(MAX_FIELD));
+            node.set_above_child(u32::try_from(next.0).unwrap_or(MAX_NODES).min(MAX_NODES));
             splits.push((index, node));
             let dr = lay_out(*right, next, splits, tasks);
             depth.max(dl).max(dr)
@@ -453,7 +453,7 @@ fn assemble(
     let (mut next, mut splits, mut tasks) = ((0, 0), Vec::new(), Vec::new());
     let depth = lay_out(top, &mut next, &mut splits, &mut tasks);
     let (n_nodes, n_items) = next;
-    let result = if n_nodes > MAX_FIELD as usize || n_items > u32::MAX as usize {
+    let result = if n_nodes > MAX_NODES as usize || n_items > u32::MAX as usize {
         Err(too_many_nodes())
     } else {
         nodes.resize(n_nodes, KdNode::leaf(0, 0));
@@ -580,7 +580,7 @@ struct Builder {
 impl Builder {
     fn leaf(&mut self, at: usize, n: usize) -> Result<(), AccelError> {
         let offset = self.items.len();
-        if offset > u32::MAX as usize - n || n > MAX_FIELD as usize || self.nodes.len() >= MAX_FIELD as usize {
+        if offset > u32::MAX as usize - n || n > MAX_FIELD as usize || self.nodes.len() >= MAX_NODES as usize {
             return Err(too_many_nodes());
         }
         self.items.extend(self.arena[at..at + n].iter().map(Item::id));
@@ -597,7 +597,7 @@ impl Builder {
             return self.leaf(at, n);
         };
         let index = self.nodes.len();
-        if index >= MAX_FIELD as usize {
+        if index >= MAX_NODES as usize {
             return Err(too_many_nodes());
         }
         let (lcell, rcell) = halves(cell, axis, plane);

@@ -201,3 +201,83 @@ fn the_parallel_fast_build_equals_the_serial_one() {
     }
     assert_eq!(par.stats().depth, ser.stats().depth);
 }
+
+/// Every leaf cell of `tree` (by list offset) with its box, empty cells
+/// (which have no node) left out.
+fn leaf_cells(tree: &KdTree) -> Vec<(u32, Aabb)> {
+    let mut out = Vec::new();
+    let mut stack = vec![(0u32, tree.bounds())];
+    while let Some((i, cell)) = stack.pop() {
+        let n = tree.nodes()[i as usize];
+        if n.is_leaf() {
+            out.extend((n.prim_count() > 0).then_some((n.prim_offset(), cell)));
+            continue;
+        }
+        let (mut below, mut above) = (cell, cell);
+        below.max[n.axis()] = n.split();
+        above.min[n.axis()] = n.split();
+        let [b, a] = n.children(i);
+        stack.extend(b.map(|b| (b, below)));
+        stack.extend(a.map(|a| (a, above)));
+    }
+    out
+}
+
+/// The parameter interval, in f64, over which `ray` (from `t = 0`) lies in
+/// `cell` grown by `grow` on every side.
+fn f64_interval(ray: &Ray, cell: &Aabb, grow: f64) -> (f64, f64) {
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for k in 0..3 {
+        let (o, d) = (f64::from(ray.origin[k]), f64::from(ray.dir[k]));
+        let (lo, hi) = (f64::from(cell.min[k]) - grow, f64::from(cell.max[k]) + grow);
+        if d == 0.0 {
+            if o < lo || o > hi {
+                return (1.0, 0.0);
+            }
+            continue;
+        }
+        let (a, b) = ((lo - o) / d, (hi - o) / d);
+        (t0, t1) = (t0.max(a.min(b)), t1.min(a.max(b)));
+    }
+    (t0, t1)
+}
+
+/// Traversal visits every leaf whose cell the ray runs through and no leaf
+/// whose cell it misses by more than a rounding margin: a step that takes a
+/// wrong child (an empty cell's flag ignored, the near and far children
+/// swapped) still finds the right hits but walks cells the ray never enters.
+#[test]
+fn traversal_visits_exactly_the_leaves_the_ray_runs_through() {
+    let tris = meshgen::bumpy_sphere(3_000, 5, 0.5);
+    let b = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t)));
+    let tree = KdTree::build_sah(tris).expect("build");
+    let cells = leaf_cells(&tree);
+    let eps = 1e-4 * f64::from(b.extent().max_element());
+    let mut checked = 0;
+    for ray in meshgen::random_rays(3_000, 9, b) {
+        let Some((t0, t1)) = tree.bounds().clip(&ray) else {
+            continue;
+        };
+        let mut visited = Vec::new();
+        let mut never = f32::INFINITY;
+        openrt_accel::traverse(tree.nodes(), &ray, t0, t1, &mut never, |leaf, _| {
+            visited.push(leaf.prim_offset());
+            false
+        });
+        for (off, cell) in &cells {
+            let (inner0, inner1) = f64_interval(&ray, cell, -eps);
+            let (outer0, outer1) = f64_interval(&ray, cell, eps);
+            let seen = visited.contains(off);
+            assert!(
+                seen || inner0 > inner1,
+                "ray {ray:?} runs through leaf {off} but did not visit it"
+            );
+            assert!(
+                !seen || outer0 <= outer1,
+                "ray {ray:?} visited leaf {off}, whose cell it misses"
+            );
+            checked += usize::from(seen);
+        }
+    }
+    assert!(checked > 1_000, "only {checked} leaf visits checked");
+}
