@@ -206,7 +206,6 @@ pub(crate) fn leaf_any(ray: &Ray, br: &BlockRay, leaf: KdNode, ids: &[u32], bloc
 #[cfg(test)]
 mod tests {
     use glam::Vec3;
-    use rand::{Rng, SeedableRng, rngs::SmallRng};
 
     use super::*;
     use crate::{Aabb, KdTree, meshgen};
@@ -226,26 +225,15 @@ mod tests {
     /// Rays aimed at vertices and edge midpoints (zero edge functions) and
     /// random rays, from random origins.
     fn rays(tris: &[Triangle], n: usize, seed: u64) -> Vec<Ray> {
-        let mut rng = SmallRng::seed_from_u64(seed);
         let b = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t)));
         let mut out = meshgen::random_rays(n, seed, b);
-        for _ in 0..n {
-            let t = &tris[rng.random_range(0..tris.len())];
-            let target = match rng.random_range(0..3) {
-                0 => t[rng.random_range(0..3)],
-                1 => (t[0] + t[1]) * 0.5,
-                _ => (t[0] + t[1] + t[2]) / 3.0,
-            };
-            let from = Vec3::new(rng.random(), rng.random(), rng.random()) * 6.0 - 3.0;
-            out.push(Ray::new(from, target - from, 0.0, f32::INFINITY));
-            // Axis-parallel: zero direction components of either sign.
-            out.push(Ray::new(
-                target - Vec3::Z * 4.0,
-                Vec3::new(-0.0, 0.0, 1.0),
-                0.0,
-                f32::INFINITY,
-            ));
-        }
+        out.extend(meshgen::hard_rays(tris, n, seed));
+        // Axis-parallel: zero direction components of either sign.
+        out.extend(
+            meshgen::hard_points(tris, n, seed)
+                .into_iter()
+                .map(|p| Ray::new(p - Vec3::Z * 4.0, Vec3::new(-0.0, 0.0, 1.0), 0.0, f32::INFINITY)),
+        );
         out
     }
 

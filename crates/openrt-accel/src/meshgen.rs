@@ -169,12 +169,11 @@ pub fn camera_rays(eye: Vec3, at: Vec3, w: usize, h: usize, fov_deg: f32) -> Vec
     rays
 }
 
-/// `n` rays aimed at the vertices, edge midpoints and centroids of random
-/// triangles of `tris` from random origins in a cube of side 6 about the
-/// origin: where a triangle test that is not watertight lets rays through
-/// shared edges and vertices of a closed mesh.
+/// `n` points of random triangles of `tris`, each a vertex, an edge
+/// midpoint or a centroid: where a triangle test that is not watertight
+/// lets rays through the shared edges and vertices of a closed mesh.
 #[must_use]
-pub fn hard_rays(tris: &[Triangle], n: usize, seed: u64) -> Vec<Ray> {
+pub fn hard_points(tris: &[Triangle], n: usize, seed: u64) -> Vec<Vec3> {
     if tris.is_empty() {
         return Vec::new();
     }
@@ -182,11 +181,23 @@ pub fn hard_rays(tris: &[Triangle], n: usize, seed: u64) -> Vec<Ray> {
     (0..n)
         .map(|_| {
             let t = &tris[rng.random_range(0..tris.len())];
-            let target = match rng.random_range(0..3) {
+            match rng.random_range(0..3) {
                 0 => t[rng.random_range(0..3)],
                 1 => (t[0] + t[1]) * 0.5,
                 _ => (t[0] + t[1] + t[2]) / 3.0,
-            };
+            }
+        })
+        .collect()
+}
+
+/// `n` rays aimed at [`hard_points`] from random origins in a cube of
+/// side 6 about the origin.
+#[must_use]
+pub fn hard_rays(tris: &[Triangle], n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = SmallRng::seed_from_u64(seed ^ 0x9e37_79b9);
+    hard_points(tris, n, seed)
+        .into_iter()
+        .map(|target| {
             let from = Vec3::new(rng.random(), rng.random(), rng.random()) * 6.0 - 3.0;
             Ray::new(from, target - from, 0.0, f32::INFINITY)
         })
