@@ -252,23 +252,36 @@ impl KdTree {
             return 0.0;
         }
         let mut cost = 0.0;
+        for (n, cell) in self.cells() {
+            let w = f64::from(cell.surface_area()) / root_sa;
+            cost += w * if n.is_leaf() {
+                f64::from(p.intersection_cost) * f64::from(n.prim_count())
+            } else {
+                f64::from(p.traversal_cost)
+            };
+        }
+        cost
+    }
+
+    /// Every node with its cell, depth first (empty cells have no node).
+    #[must_use]
+    pub fn cells(&self) -> Vec<(KdNode, Aabb)> {
+        let mut out = Vec::with_capacity(self.nodes.len());
         let mut stack = vec![(0u32, self.bounds)];
         while let Some((i, cell)) = stack.pop() {
             let n = self.nodes[i as usize];
-            let w = f64::from(cell.surface_area()) / root_sa;
+            out.push((n, cell));
             if n.is_leaf() {
-                cost += w * f64::from(p.intersection_cost) * f64::from(n.prim_count());
-            } else {
-                cost += w * f64::from(p.traversal_cost);
-                let (mut l, mut r) = (cell, cell);
-                l.max[n.axis()] = n.split();
-                r.min[n.axis()] = n.split();
-                let [below, above] = n.children(i);
-                stack.extend(below.map(|b| (b, l)));
-                stack.extend(above.map(|a| (a, r)));
+                continue;
             }
+            let (mut below, mut above) = (cell, cell);
+            below.max[n.axis()] = n.split();
+            above.min[n.axis()] = n.split();
+            let [b, a] = n.children(i);
+            stack.extend(a.map(|a| (a, above)));
+            stack.extend(b.map(|b| (b, below)));
         }
-        cost
+        out
     }
 
     /// Checks every structural invariant of the tree:

@@ -202,25 +202,13 @@ fn the_parallel_fast_build_equals_the_serial_one() {
     assert_eq!(par.stats().depth, ser.stats().depth);
 }
 
-/// Every leaf cell of `tree` (by list offset) with its box, empty cells
-/// (which have no node) left out.
+/// Every non-empty leaf of `tree` (by list offset) with its cell.
 fn leaf_cells(tree: &KdTree) -> Vec<(u32, Aabb)> {
-    let mut out = Vec::new();
-    let mut stack = vec![(0u32, tree.bounds())];
-    while let Some((i, cell)) = stack.pop() {
-        let n = tree.nodes()[i as usize];
-        if n.is_leaf() {
-            out.extend((n.prim_count() > 0).then_some((n.prim_offset(), cell)));
-            continue;
-        }
-        let (mut below, mut above) = (cell, cell);
-        below.max[n.axis()] = n.split();
-        above.min[n.axis()] = n.split();
-        let [b, a] = n.children(i);
-        stack.extend(b.map(|b| (b, below)));
-        stack.extend(a.map(|a| (a, above)));
-    }
-    out
+    tree.cells()
+        .into_iter()
+        .filter(|(n, _)| n.is_leaf() && n.prim_count() > 0)
+        .map(|(n, cell)| (n.prim_offset(), cell))
+        .collect()
 }
 
 /// The parameter interval, in f64, over which `ray` (from `t = 0`) lies in
