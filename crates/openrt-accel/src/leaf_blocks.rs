@@ -142,6 +142,9 @@ impl BlockRay {
     }
 }
 
+/// Blocks whose candidate masks fit one `u64`.
+const CHUNK: usize = 64 / LANES;
+
 /// Calls `visit(prim, triangle)` for each triangle of `leaf` that passes
 /// the block pre-test, in leaf order, until `visit` returns `true` (then
 /// returns `true`). `ids` and `blocks` are as made by [`pack_leaves`].
@@ -160,12 +163,19 @@ fn for_each_candidate(
     let off = leaf.prim_offset() as usize;
     let first = off / LANES;
     let count = (leaf.prim_count() as usize).div_ceil(LANES);
-    for (k, b) in blocks[first..first + count].iter().enumerate() {
-        let mut m = br.candidates(b);
+    // PERF: the masks of up to `CHUNK` blocks are gathered before any of
+    // them is looked at, so that the pre-tests of a leaf run without a branch
+    // on their results between them.
+    for (c, chunk) in blocks[first..first + count].chunks(CHUNK).enumerate() {
+        let mut m = 0u64;
+        for (k, b) in chunk.iter().enumerate() {
+            m |= u64::from(br.candidates(b)) << (k * LANES);
+        }
         while m != 0 {
-            let lane = m.trailing_zeros() as usize;
+            let bit = m.trailing_zeros() as usize;
             m &= m - 1;
-            if visit(ids[off + k * LANES + lane], &b.triangle(lane)) {
+            let (k, lane) = (bit / LANES, bit % LANES);
+            if visit(ids[off + (c * CHUNK + k) * LANES + lane], &chunk[k].triangle(lane)) {
                 return true;
             }
         }
@@ -247,6 +257,22 @@ mod tests {
                 "soup",
                 meshgen::random_soup(2_000, 9, Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)), 0.3),
             ),
+            // One plane, one box: no split separates them, so one leaf holds
+            // all 150 (more than one 64-lane chunk of masks), overlapping, so
+            // the order of equal hits decides the result.
+            (
+                "stack",
+                (0..150)
+                    .map(|i| {
+                        let x = i as f32 / 75.0 - 1.0;
+                        [
+                            Vec3::new(-1.0, -1.0, 0.0),
+                            Vec3::new(1.0, -1.0, 0.0),
+                            Vec3::new(x, 1.0, 0.0),
+                        ]
+                    })
+                    .collect(),
+            ),
         ] {
             let tree = KdTree::build_sah(tris.clone()).unwrap();
             let leaves: Vec<KdNode> = tree
@@ -255,6 +281,12 @@ mod tests {
                 .copied()
                 .filter(|n| n.is_leaf() && n.prim_count() > 0)
                 .collect();
+            if name == "stack" {
+                assert!(
+                    leaves.iter().any(|n| n.prim_count() as usize > 64),
+                    "{name}: no leaf over 64"
+                );
+            }
             let (mut tested, mut hits) = (0usize, 0usize);
             for ray in rays(&tris, 300, 11) {
                 let br = BlockRay::new(&ray);

@@ -14,6 +14,31 @@ use crate::numeric::gamma;
 /// for boxes; the same argument for kd cells) visits such cells instead.
 const ENLARGE: f32 = 2.0 * gamma(3);
 
+/// Relative margin of the interval bounds the walk carries: the box
+/// clip's entry and exit and every split distance that becomes a bound are
+/// widened by `BOUND`, so that the near/far decision compares the raw split
+/// distance with them.
+///
+/// NOTE: `t_split > b + |b| BOUND` implies `t_split - |t_split| ENLARGE >
+/// b + |b| ENLARGE` for either sign of `b` (`(1 + B)(1 - E) >= 1 + E` needs
+/// `B >= 2E / (1 - E)`; the extra `2 EPSILON` absorbs the roundings of the
+/// widening), and the mirror for lower bounds: every cell that comparing
+/// split distances widened by `ENLARGE` on both sides would visit is visited
+/// (tested below).
+const BOUND: f32 = 2.0 * ENLARGE + 2.0 * f32::EPSILON;
+
+/// `t` widened upwards by [`BOUND`] relative.
+#[inline]
+fn widen_up(t: f32) -> f32 {
+    t + t.abs() * BOUND
+}
+
+/// `t` widened downwards by [`BOUND`] relative.
+#[inline]
+fn widen_down(t: f32) -> f32 {
+    t - t.abs() * BOUND
+}
+
 /// A deferred far child with its parameter interval.
 #[derive(Clone, Copy)]
 struct StackEntry {
@@ -34,20 +59,37 @@ struct StackEntry {
 ///
 /// Node indices must form a valid tree (checked by the trees' `validate`).
 #[inline]
-pub fn traverse<L>(nodes: &[KdNode], ray: &Ray, t0: f32, t1: f32, closest: &mut f32, mut leaf: L) -> bool
+pub fn traverse<L>(nodes: &[KdNode], ray: &Ray, t0: f32, t1: f32, closest: &mut f32, leaf: L) -> bool
 where
     L: FnMut(KdNode, &mut f32) -> bool,
 {
     if nodes.is_empty() || t0.is_nan() || t1.is_nan() || t0 > t1 {
         return false;
     }
+    // PERF: a ray without zero direction components (nearly every ray) runs
+    // a copy of the walk without the zero test in its interior step.
+    if ray.dir.cmpeq(glam::Vec3::ZERO).any() {
+        walk::<true, L>(nodes, ray, t0, t1, closest, leaf)
+    } else {
+        walk::<false, L>(nodes, ray, t0, t1, closest, leaf)
+    }
+}
+
+/// [`traverse`] for a ray with (`ZERO`) or without zero direction components.
+#[inline]
+fn walk<const ZERO: bool, L>(nodes: &[KdNode], ray: &Ray, t0: f32, t1: f32, closest: &mut f32, mut leaf: L) -> bool
+where
+    L: FnMut(KdNode, &mut f32) -> bool,
+{
     // PERF: the stack is not zeroed: entries are written before they are read.
     let mut stack = [std::mem::MaybeUninit::<StackEntry>::uninit(); MAX_DEPTH];
     let mut sp = 0usize;
     let mut node = 0u32;
-    let (mut t_min, mut t_max) = (t0, t1);
+    let (mut t_min, mut t_max) = (widen_down(t0), widen_up(t1));
     let org = ray.origin.to_array();
     let dir = ray.dir.to_array();
+    // Bit `k` set: the direction's component `k` is negative.
+    let negative = ray.dir.is_negative_bitmask();
     let inv = ray.inv_dir.to_array();
     'walk: loop {
         // NOTE: kept bounds-checked: `traverse` is public and safe, so a
@@ -80,7 +122,7 @@ where
             }
             // NOTE: exact test: a ray with a zero component (either sign) never
             // crosses this plane; its side is the origin's, both if it lies in it.
-            if d == 0.0 {
+            if ZERO && d == 0.0 {
                 if o < split {
                     go!(below);
                 } else if o > split {
@@ -97,8 +139,11 @@ where
                 go!(below);
             }
             let t_split = (split - o) * inv[axis];
-            let margin = t_split.abs() * ENLARGE;
-            let (lo, hi) = (t_split - margin, t_split + margin);
+            // PERF: the branches compare the raw split distance with the
+            // widened bounds (`BOUND`), not a widened split distance with
+            // them: the margin's operations stay off the path from the node
+            // load to the branch, which a mispredicted step waits for.
+            let (lo, hi) = (widen_down(t_split), widen_up(t_split));
             // NOTE: the near child is chosen by the sign of the direction, not
             // by the side of the origin (pbrt): a ray whose origin lies beyond
             // the plane has `t_split < 0` and takes the far child alone. One
@@ -109,9 +154,9 @@ where
             // index behind the node load, and camera rays, whose branches are
             // predicted, ran 22-34% slower (docs/PERFORMANCE.md).
             let mut step = |first: (u32, bool), second: (u32, bool)| {
-                if lo > t_max {
+                if t_split > t_max {
                     first
-                } else if hi < t_min {
+                } else if t_split < t_min {
                     second
                 } else {
                     if !second.1 {
@@ -126,7 +171,7 @@ where
                     first
                 }
             };
-            if d < 0.0 {
+            if (negative >> axis) & 1 != 0 {
                 go!(step(above, below));
             }
             go!(step(below, above));
@@ -146,5 +191,40 @@ where
                 break;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+
+    /// A decision made by comparing a raw split distance with bounds widened
+    /// by `BOUND` is one that comparing split distances widened by
+    /// `ENLARGE` on both sides also makes, for both signs, at the scales
+    /// and the distances in ulps where rounding decides.
+    #[test]
+    fn widened_bounds_are_at_least_as_conservative_as_the_margins() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        let (mut beyond, mut before) = (0, 0);
+        for _ in 0..200_000 {
+            let mag = 10f32.powi(rng.random_range(-12..=12)) * rng.random_range(1.0..2.0f32);
+            let b = if rng.random() { mag } else { -mag };
+            // A split distance a few ulps to a few margins away from `b`.
+            let s = crate::numeric::step_ulps(b, rng.random_range(-160..=160));
+            let margin = |t: f32| t.abs() * ENLARGE;
+            if s > widen_up(b) {
+                assert!(s - margin(s) > b + margin(b), "{s} beyond widen_up({b})");
+                beyond += 1;
+            }
+            if s < widen_down(b) {
+                assert!(s + margin(s) < b - margin(b), "{s} before widen_down({b})");
+                before += 1;
+            }
+        }
+        // Both decisions must have been exercised near their thresholds.
+        assert!(beyond > 1_000 && before > 1_000, "{beyond} beyond, {before} before");
     }
 }
