@@ -149,32 +149,51 @@ where
             // the plane has `t_split < 0` and takes the far child alone. One
             // unpredictable branch less per step for incoherent rays, and the
             // same cells for every `t` interval, negative ones included.
-            // PERF: written as two calls of one body so that the compiler keeps
-            // the near/far choice a branch: as a select it puts the child's
+            // PERF: written as two expansions of one body so that the
+            // near/far choice stays a branch: as a select it puts the child's
             // index behind the node load, and camera rays, whose branches are
             // predicted, ran 22-34% slower (docs/PERFORMANCE.md).
-            let mut step = |first: (u32, bool), second: (u32, bool)| {
-                if t_split > t_max {
-                    first
-                } else if t_split < t_min {
-                    second
-                } else {
-                    if !second.1 {
-                        stack[sp].write(StackEntry {
-                            node: second.0,
-                            t_min: if lo > t_min { lo } else { t_min },
-                            t_max,
-                        });
-                        sp += 1;
+            // The step visits the near child unless the plane lies before the
+            // interval or the near cell is empty, the far child unless the
+            // plane lies beyond the interval or the far cell is empty: two
+            // branches, each on a flag computed without one (three before:
+            // near only / far only / both, then the chosen cell's emptiness).
+            // A NaN `t_split` (a zero times an infinite reciprocal) visits
+            // both children over the whole interval.
+            macro_rules! step {
+                ($near:expr, $far:expr) => {{
+                    let (near, far): ((u32, bool), (u32, bool)) = ($near, $far);
+                    // The plane lies before / beyond the interval (false for NaN).
+                    let (before, beyond) = (t_split < t_min, t_split > t_max);
+                    let go_near = !before & !near.1;
+                    let go_far = !beyond & !far.1;
+                    let lo = if lo > t_min { lo } else { t_min };
+                    let hi = if hi < t_max { hi } else { t_max };
+                    if go_near {
+                        if go_far {
+                            stack[sp].write(StackEntry {
+                                node: far.0,
+                                t_min: lo,
+                                t_max,
+                            });
+                            sp += 1;
+                        }
+                        t_max = hi;
+                        node = near.0;
+                        continue 'walk;
                     }
-                    t_max = if hi < t_max { hi } else { t_max };
-                    first
-                }
-            };
-            if (negative >> axis) & 1 != 0 {
-                go!(step(above, below));
+                    if go_far {
+                        t_min = lo;
+                        node = far.0;
+                        continue 'walk;
+                    }
+                    break 'cell;
+                }};
             }
-            go!(step(below, above));
+            if (negative >> axis) & 1 != 0 {
+                step!(above, below);
+            }
+            step!(below, above);
         }
         // Pop, skipping cells that start beyond the closest hit.
         loop {
