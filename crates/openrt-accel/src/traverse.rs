@@ -170,14 +170,14 @@ where
                     let lo = if lo > t_min { lo } else { t_min };
                     let hi = if hi < t_max { hi } else { t_max };
                     if go_near {
-                        if go_far {
-                            stack[sp].write(StackEntry {
-                                node: far.0,
-                                t_min: lo,
-                                t_max,
-                            });
-                            sp += 1;
-                        }
+                        // PERF: the far entry is written every time and kept
+                        // only when the far cell is visited (no branch).
+                        stack[sp].write(StackEntry {
+                            node: far.0,
+                            t_min: lo,
+                            t_max,
+                        });
+                        sp += usize::from(go_far);
                         t_max = hi;
                         node = near.0;
                         continue 'walk;
