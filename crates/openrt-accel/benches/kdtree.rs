@@ -53,6 +53,15 @@ fn pass_secs(rays: &[Ray], query: impl Fn(&Ray) -> bool) -> f64 {
     t.elapsed().as_secs_f64()
 }
 
+/// Seconds of one pass of the closest-hit (`closest`) or the any-hit query.
+fn query_secs(rays: &[Ray], closest: bool, hit: impl Fn(&Ray) -> bool, any: impl Fn(&Ray) -> bool) -> f64 {
+    if closest {
+        pass_secs(rays, hit)
+    } else {
+        pass_secs(rays, any)
+    }
+}
+
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -151,26 +160,14 @@ fn summary() {
                 // after a build ran up to 20% slower (cold caches, and
                 // Embree's build threads still winding down beside it).
                 for round in 0..8 {
-                    let k = if closest {
-                        pass_secs(rays, |r| tree.intersect(r).is_some())
-                    } else {
-                        pass_secs(rays, |r| tree.occluded(r))
-                    };
+                    let k = query_secs(rays, closest, |r| tree.intersect(r).is_some(), |r| tree.occluded(r));
                     if round > 0 {
                         kd.push(k);
                     }
                     #[cfg(feature = "embree")]
                     {
-                        let e = if closest {
-                            pass_secs(rays, |r| emb.intersect(r).is_some())
-                        } else {
-                            pass_secs(rays, |r| emb.occluded(r))
-                        };
-                        let er = if closest {
-                            pass_secs(rays, |r| robust.intersect(r).is_some())
-                        } else {
-                            pass_secs(rays, |r| robust.occluded(r))
-                        };
+                        let e = query_secs(rays, closest, |r| emb.intersect(r).is_some(), |r| emb.occluded(r));
+                        let er = query_secs(rays, closest, |r| robust.intersect(r).is_some(), |r| robust.occluded(r));
                         if round > 0 {
                             peer.push(e);
                             ratios.push(e / k);

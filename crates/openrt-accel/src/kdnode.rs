@@ -55,10 +55,7 @@ pub(crate) fn append_shifted(
     sub_prims: &[u32],
 ) -> Result<(), crate::AccelError> {
     let (at, prim_at) = (nodes.len(), prims.len());
-    if prim_at + sub_prims.len() > u32::MAX as usize {
-        return Err(too_many_nodes());
-    }
-    if at + sub_nodes.len() > MAX_NODES as usize {
+    if prim_at + sub_prims.len() > u32::MAX as usize || at + sub_nodes.len() > MAX_NODES as usize {
         return Err(too_many_nodes());
     }
     nodes.resize(at + sub_nodes.len(), KdNode::leaf(0, 0));

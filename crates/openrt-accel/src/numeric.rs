@@ -34,6 +34,9 @@ pub(crate) fn step_ulps(x: f32, k: i32) -> f32 {
 
 #[cfg(test)]
 mod step_tests {
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
     use super::step_ulps;
 
     #[test]
@@ -54,13 +57,8 @@ mod step_tests {
             1e6,
             -3.5e-3,
         ];
-        let mut s = 0x2545_F491_4F6C_DD1Du64;
-        for _ in 0..2_000 {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            v.push(f32::from_bits((s >> 32) as u32));
-        }
+        let mut rng = SmallRng::seed_from_u64(0x2545_F491);
+        v.extend((0..2_000).map(|_| f32::from_bits(rng.random())));
         for x in v {
             for k in 0..6 {
                 let (mut up, mut down) = (x, x);
