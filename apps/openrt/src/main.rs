@@ -15,7 +15,7 @@ mod bench;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use openrt_accel::BuilderKind;
-use openrt_core::{Image, RenderMode, RenderSettings, Renderer};
+use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer};
 use openrt_scene::ScenePlayer;
 
 #[derive(Parser)]
@@ -54,6 +54,9 @@ struct Quality {
     /// Render threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Traversal backend: `kd` (ray packets) or `kd-single` (one ray at a time).
+    #[arg(long, default_value = "kd")]
+    backend: Backend,
 }
 
 #[derive(Subcommand)]
@@ -139,6 +142,13 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
     s
 }
 
+/// The render pool for the quality options: thread count and backend.
+fn renderer(q: &Quality) -> Renderer {
+    let mut r = Renderer::new(threads(q));
+    r.set_backend(q.backend);
+    r
+}
+
 fn threads(q: &Quality) -> usize {
     q.threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
@@ -192,7 +202,7 @@ fn run(cli: Cli) -> Result<(), String> {
             };
             let commit = player.set_time(t).map_err(|e| e.to_string())?;
             let s = settings(&player, &quality);
-            let renderer = Renderer::new(threads(&quality));
+            let renderer = renderer(&quality);
             let (img, stats) = renderer
                 .render(&player.ctx().scene(), &player.env(), &player.camera(t), &s)
                 .map_err(|e| e.to_string())?;
@@ -200,13 +210,14 @@ fn run(cli: Cli) -> Result<(), String> {
             let scene = player.ctx().scene();
             let r = stats.rays;
             println!(
-                "{}: t={t} {}x{} {:?} depth {} on {} threads: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles",
+                "{}: t={t} {}x{} {:?} depth {} on {} threads, backend {}: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles",
                 output.display(),
                 s.width,
                 s.height,
                 s.mode,
                 s.max_depth,
                 stats.threads,
+                renderer.backend().name(),
                 stats.render_ms,
                 stats.mrays_per_s,
                 r.primary,
@@ -268,7 +279,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 None => Box::new(std::io::stdout()),
             };
             let s = settings(&player, &quality);
-            let renderer = Renderer::new(threads(&quality));
+            let renderer = renderer(&quality);
             let bar = ProgressBar::new(u64::from(range.end - range.start));
             bar.set_style(
                 ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta} {msg}")

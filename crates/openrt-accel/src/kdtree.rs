@@ -4,9 +4,14 @@ use std::time::Instant;
 
 use crate::fast_build::{FastParams, build_fast};
 use crate::kdnode::{KdNode, MAX_DEPTH, elide_empty_leaves};
-use crate::leaf_blocks::{BlockRay, LANES, TriBlock, leaf_any, leaf_closest, pack_leaves};
+use crate::leaf_blocks::{
+    BlockRay, LANES, PacketBlockRay, TriBlock, for_each_candidate_packet, leaf_any, leaf_closest, pack_leaves,
+};
+use crate::packet::lanes_of;
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
+use crate::traverse_packet::traverse_packet;
+use crate::triangle::intersect_triangle;
 use crate::triangle::is_valid_triangle;
 use crate::{Aabb, AccelError, Hit, Ray, Triangle};
 
@@ -237,6 +242,127 @@ impl KdTree {
         traverse(&self.nodes, ray, t0, t1, &mut closest, |leaf, closest| {
             leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest)
         })
+    }
+
+    /// [`KdTree::intersect_within`] for the rays of the `lanes` mask at
+    /// once: lane `l` gets exactly the answer of
+    /// `intersect_within(&rays[l], &mut closest[l])`, written to `hits[l]`
+    /// when there is one (other entries are left as they are). Returns the
+    /// lanes that found a closer hit.
+    ///
+    /// Lanes that share direction signs walk the tree as a packet
+    /// ([`crate::traverse_packet`]); each lane tests its leaves' triangles
+    /// with the scalar kernel's exact arithmetic.
+    pub fn intersect_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        closest: &mut [f32; N],
+        hits: &mut [Option<Hit>; N],
+    ) -> u32 {
+        let mut t0 = [0.0f32; N];
+        let mut t1 = [0.0f32; N];
+        let mut live = 0u32;
+        for l in lanes_of(lanes) {
+            if let Some((a, b)) = self.bounds.clip(&rays[l].with_interval(rays[l].t_min, closest[l])) {
+                (t0[l], t1[l]) = (a, b);
+                live |= 1 << l;
+            }
+        }
+        if live == 0 {
+            return 0;
+        }
+        let mut found = 0u32;
+        // PERF: lanes sharing the axis permutation (nearly every coherent
+        // packet) pre-test each triangle against all lanes at once.
+        if let Some(pbr) = PacketBlockRay::new(rays, live) {
+            traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
+                for_each_candidate_packet(&pbr, active, leaf, &self.prim_ids, &self.blocks, |m, prim, tri| {
+                    for l in lanes_of(m) {
+                        if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, closest[l]) {
+                            closest[l] = t;
+                            hits[l] = Some(Hit { t, prim, b1, b2 });
+                            found |= 1 << l;
+                        }
+                    }
+                    0
+                });
+                0
+            });
+            return found;
+        }
+        let brs: [BlockRay; N] = std::array::from_fn(|l| BlockRay::new(&rays[l]));
+        traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
+            for l in lanes_of(active) {
+                if let Some((prim, (t, b1, b2))) =
+                    leaf_closest(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l])
+                {
+                    closest[l] = t;
+                    hits[l] = Some(Hit { t, prim, b1, b2 });
+                    found |= 1 << l;
+                }
+            }
+            0
+        });
+        found
+    }
+
+    /// [`KdTree::occluded`] for the rays of the `lanes` mask at once: the
+    /// mask of the lanes whose ray hits something in its interval.
+    #[must_use]
+    pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
+        let mut t0 = [0.0f32; N];
+        let mut t1 = [0.0f32; N];
+        let mut closest = [0.0f32; N];
+        let mut live = 0u32;
+        for l in lanes_of(lanes) {
+            if let Some((a, b)) = self.bounds.clip(&rays[l]) {
+                (t0[l], t1[l], closest[l]) = (a, b, rays[l].t_max);
+                live |= 1 << l;
+            }
+        }
+        if live == 0 {
+            return 0;
+        }
+        if let Some(pbr) = PacketBlockRay::new(rays, live) {
+            return traverse_packet(
+                &self.nodes,
+                rays,
+                live,
+                &t0,
+                &t1,
+                &mut closest,
+                |leaf, active, closest| {
+                    for_each_candidate_packet(&pbr, active, leaf, &self.prim_ids, &self.blocks, |m, _, tri| {
+                        let mut hit = 0u32;
+                        for l in lanes_of(m) {
+                            if intersect_triangle(&rays[l], tri, closest[l]).is_some() {
+                                hit |= 1 << l;
+                            }
+                        }
+                        hit
+                    })
+                },
+            );
+        }
+        let brs: [BlockRay; N] = std::array::from_fn(|l| BlockRay::new(&rays[l]));
+        traverse_packet(
+            &self.nodes,
+            rays,
+            live,
+            &t0,
+            &t1,
+            &mut closest,
+            |leaf, active, closest| {
+                let mut hit = 0u32;
+                for l in lanes_of(active) {
+                    if leaf_any(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l]) {
+                        hit |= 1 << l;
+                    }
+                }
+                hit
+            },
+        )
     }
 
     /// The tree's expected cost under the surface area heuristic with the

@@ -40,10 +40,12 @@ mod kdnode;
 mod kdtree;
 mod leaf_blocks;
 mod numeric;
+mod packet;
 mod ray;
 mod sah_build;
 mod toplevel;
 mod traverse;
+mod traverse_packet;
 mod triangle;
 
 #[cfg(feature = "embree")]
@@ -59,8 +61,10 @@ pub use fast_build::FastParams;
 pub use hit::Hit;
 pub use kdnode::{KdNode, MAX_DEPTH};
 pub use kdtree::{BuilderKind, KdTree, TreeStats};
+pub use packet::{LANES_ENV, MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
 pub use ray::Ray;
 pub use sah_build::{DEFAULT_BINNED_ABOVE, SahParams, default_max_depth};
 pub use toplevel::{BspBuilder, InstanceBsp};
 pub use traverse::traverse;
+pub use traverse_packet::traverse_packet;
 pub use triangle::{TriHit, Triangle, intersect_triangle, is_valid_triangle};

@@ -25,17 +25,17 @@ const ENLARGE: f32 = 2.0 * gamma(3);
 /// widening), and the mirror for lower bounds: every cell that comparing
 /// split distances widened by `ENLARGE` on both sides would visit is visited
 /// (tested below).
-const BOUND: f32 = 2.0 * ENLARGE + 2.0 * f32::EPSILON;
+pub(crate) const BOUND: f32 = 2.0 * ENLARGE + 2.0 * f32::EPSILON;
 
 /// `t` widened upwards by [`BOUND`] relative.
 #[inline]
-fn widen_up(t: f32) -> f32 {
+pub(crate) fn widen_up(t: f32) -> f32 {
     t + t.abs() * BOUND
 }
 
 /// `t` widened downwards by [`BOUND`] relative.
 #[inline]
-fn widen_down(t: f32) -> f32 {
+pub(crate) fn widen_down(t: f32) -> f32 {
     t - t.abs() * BOUND
 }
 

@@ -8,13 +8,51 @@ use std::time::Instant;
 
 use crossbeam::channel::{Receiver, Sender, unbounded};
 use glam::Vec3;
+use openrt_accel::{PacketWidth, Ray};
 
 use crate::camera::CameraRays;
-use crate::shade::Shader;
+use crate::shade::{Prepared, Shader};
 use crate::{Camera, CoreError, Environment, RayCounts, RenderMode, Scene};
 
 /// Tile edge in pixels.
 pub const TILE: u32 = 16;
+
+/// How rays find their hits; the shading, the rays and the image are the
+/// same for every backend (byte for byte between the kd backends, tested).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum Backend {
+    /// Kd-trees through both levels, coherent rays in packets
+    /// ([`Scene::intersect_packet`]): primary rays in blocks of pixels and,
+    /// per light, their shadow rays.
+    #[default]
+    Kd,
+    /// Kd-trees through both levels, one ray at a time.
+    KdSingle,
+}
+
+impl Backend {
+    /// The name used on command lines (`kd`, `kd-single`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Kd => "kd",
+            Self::KdSingle => "kd-single",
+        }
+    }
+
+    /// Every backend of this build.
+    pub const ALL: [Self; 2] = [Self::Kd, Self::KdSingle];
+}
+
+impl std::str::FromStr for Backend {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL.into_iter().find(|b| b.name() == s).ok_or_else(|| {
+            let names: Vec<_> = Self::ALL.iter().map(|b| b.name()).collect();
+            format!("unknown backend '{s}' (this build has: {})", names.join(", "))
+        })
+    }
+}
 
 /// How a frame is rendered.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,10 +118,13 @@ struct FrameJob {
     env: Arc<Environment>,
     cam: CameraRays,
     settings: RenderSettings,
+    backend: Backend,
+    width: PacketWidth,
     tiles_x: u32,
     n_tiles: usize,
     next: AtomicUsize,
-    results: Sender<TileResult>,
+    /// Each worker sends its tiles once, when no tile is left.
+    results: Sender<Vec<TileResult>>,
 }
 
 struct TileResult {
@@ -98,6 +139,8 @@ struct TileResult {
 pub struct Renderer {
     jobs: Option<Sender<Arc<FrameJob>>>,
     workers: Vec<JoinHandle<()>>,
+    backend: Backend,
+    width: PacketWidth,
 }
 
 impl Renderer {
@@ -121,7 +164,32 @@ impl Renderer {
         Self {
             jobs: Some(tx),
             workers,
+            backend: Backend::default(),
+            width: PacketWidth::detect(),
         }
+    }
+
+    /// Chooses how rays find their hits (default [`Backend::Kd`]).
+    pub fn set_backend(&mut self, backend: Backend) {
+        self.backend = backend;
+    }
+
+    /// The backend in use.
+    #[must_use]
+    pub fn backend(&self) -> Backend {
+        self.backend
+    }
+
+    /// Chooses the packet width of [`Backend::Kd`] (default: the CPU's,
+    /// [`PacketWidth::detect`]); images do not depend on it.
+    pub fn set_packet_width(&mut self, width: PacketWidth) {
+        self.width = width;
+    }
+
+    /// The packet width in use.
+    #[must_use]
+    pub fn packet_width(&self) -> PacketWidth {
+        self.width
     }
 
     /// Number of worker threads.
@@ -149,6 +217,8 @@ impl Renderer {
             env: Arc::clone(env),
             cam,
             settings: *settings,
+            backend: self.backend,
+            width: self.width,
             tiles_x,
             n_tiles,
             next: AtomicUsize::new(0),
@@ -161,16 +231,22 @@ impl Renderer {
         drop(job);
         let mut pixels = vec![Vec3::ZERO; (settings.width * settings.height) as usize];
         let mut rays = RayCounts::default();
-        for _ in 0..n_tiles {
-            let tile = rrx.recv().expect("every tile is rendered");
-            let (tx, ty) = (tile.index as u32 % tiles_x, tile.index as u32 / tiles_x);
-            let (x0, y0) = (tx * TILE, ty * TILE);
-            let w = TILE.min(settings.width - x0);
-            for (row, chunk) in tile.pixels.chunks(w as usize).enumerate() {
-                let start = ((y0 + row as u32) * settings.width + x0) as usize;
-                pixels[start..start + chunk.len()].copy_from_slice(chunk);
+        // PERF: one message per worker per frame, not one per tile: a wake-up
+        // of this thread per tile cost ~10% of a GL-like kitchen frame.
+        let mut received = 0;
+        while received < n_tiles {
+            let tiles = rrx.recv().expect("every tile is rendered");
+            for tile in tiles {
+                received += 1;
+                let (tx, ty) = (tile.index as u32 % tiles_x, tile.index as u32 / tiles_x);
+                let (x0, y0) = (tx * TILE, ty * TILE);
+                let w = TILE.min(settings.width - x0);
+                for (row, chunk) in tile.pixels.chunks(w as usize).enumerate() {
+                    let start = ((y0 + row as u32) * settings.width + x0) as usize;
+                    pixels[start..start + chunk.len()].copy_from_slice(chunk);
+                }
+                rays.add(&tile.counts);
             }
-            rays.add(&tile.counts);
         }
         let secs = start.elapsed().as_secs_f64();
         let stats = FrameStats {
@@ -207,9 +283,13 @@ fn render_tiles(job: &FrameJob) {
         max_depth: job.settings.max_depth,
         counts: RayCounts::default(),
     };
+    let mut blocked = Vec::new();
+    let mut done = Vec::new();
     loop {
         let index = job.next.fetch_add(1, Ordering::Relaxed);
         if index >= job.n_tiles {
+            // The receiver only goes away if render() panicked; nothing to do then.
+            let _ = job.results.send(done);
             return;
         }
         shader.counts = RayCounts::default();
@@ -219,19 +299,126 @@ fn render_tiles(job: &FrameJob) {
             (x0 + TILE).min(job.settings.width),
             (y0 + TILE).min(job.settings.height),
         );
-        let mut pixels = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
-        for y in y0..y1 {
-            for x in x0..x1 {
-                shader.counts.primary += 1;
-                let c = shader.trace(&job.cam.ray(x, y), 0);
-                pixels.push(if c.is_finite() { c } else { Vec3::ZERO });
+        let tile = Tile { x0, y0, x1, y1 };
+        let mut pixels = vec![Vec3::ZERO; ((x1 - x0) * (y1 - y0)) as usize];
+        match (job.backend, job.width) {
+            (Backend::KdSingle, _) => {
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        shader.counts.primary += 1;
+                        let c = shader.trace(&job.cam.ray(x, y), 0);
+                        pixels[tile.index(x, y)] = c;
+                    }
+                }
+            }
+            (Backend::Kd, PacketWidth::W4) => packet_tile::<4>(&mut shader, job, tile, &mut pixels, &mut blocked),
+            (Backend::Kd, PacketWidth::W8) => packet_tile::<8>(&mut shader, job, tile, &mut pixels, &mut blocked),
+            (Backend::Kd, PacketWidth::W16) => {
+                packet_tile::<16>(&mut shader, job, tile, &mut pixels, &mut blocked);
             }
         }
-        // The receiver only goes away if render() panicked; nothing to do then.
-        let _ = job.results.send(TileResult {
+        for p in &mut pixels {
+            if !p.is_finite() {
+                *p = Vec3::ZERO;
+            }
+        }
+        done.push(TileResult {
             index,
             pixels,
             counts: shader.counts,
         });
+    }
+}
+
+/// The pixel rectangle `[x0, x1) x [y0, y1)` of a tile.
+#[derive(Clone, Copy)]
+struct Tile {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl Tile {
+    /// Index of pixel `(x, y)` in the tile's row-major buffer.
+    fn index(self, x: u32, y: u32) -> usize {
+        ((y - self.y0) * (self.x1 - self.x0) + (x - self.x0)) as usize
+    }
+}
+
+/// Width and height of the pixel block that fills an `N`-lane packet.
+const fn block(n: usize) -> (u32, u32) {
+    match n {
+        4 => (2, 2),
+        8 => (4, 2),
+        _ => (4, 4),
+    }
+}
+
+/// Renders a tile in packets of `N` primary rays (blocks of pixels), then
+/// per light the packet's shadow rays; reflection and refraction rays go
+/// one by one. Every pixel gets the bytes the single-ray path gives it: the
+/// packet queries answer each lane as the single-ray queries do, and the
+/// shading is the same code ([`Shader::prepare`] and [`Shader::finish`]).
+fn packet_tile<const N: usize>(
+    shader: &mut Shader<'_>,
+    job: &FrameJob,
+    tile: Tile,
+    pixels: &mut [Vec3],
+    blocked: &mut Vec<u32>,
+) {
+    let scene = shader.scene;
+    let lights = &shader.env.lights;
+    let (bw, bh) = block(N);
+    for by in (tile.y0..tile.y1).step_by(bh as usize) {
+        for bx in (tile.x0..tile.x1).step_by(bw as usize) {
+            let mut at = [(0u32, 0u32); N];
+            let mut lanes = 0u32;
+            for (l, slot) in at.iter_mut().enumerate() {
+                let (x, y) = (bx + l as u32 % bw, by + l as u32 / bw);
+                if x < tile.x1 && y < tile.y1 {
+                    *slot = (x, y);
+                    lanes |= 1 << l;
+                }
+            }
+            let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray(at[l].0, at[l].1));
+            shader.counts.primary += u64::from(lanes.count_ones());
+            let hits = scene.intersect_packet(&rays, lanes);
+            let preps: [Option<Prepared>; N] = std::array::from_fn(|l| {
+                if lanes & (1 << l) == 0 {
+                    return None;
+                }
+                shader.prepare(&rays[l], hits[l])
+            });
+            blocked.clear();
+            if shader.mode == RenderMode::Whitted {
+                for light in lights {
+                    let mut shadow = rays;
+                    let mut mask = 0u32;
+                    for (l, p) in preps.iter().enumerate() {
+                        if let Some(r) = p.as_ref().and_then(|p| shader.shadow_ray(p, light)) {
+                            shadow[l] = r;
+                            mask |= 1 << l;
+                        }
+                    }
+                    shader.counts.shadow += u64::from(mask.count_ones());
+                    blocked.push(if mask == 0 {
+                        0
+                    } else {
+                        scene.occluded_packet(&shadow, mask)
+                    });
+                }
+            }
+            for (l, p) in preps.iter().enumerate() {
+                if lanes & (1 << l) == 0 {
+                    continue;
+                }
+                let c = match p {
+                    Some(p) => shader.finish(p, |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0), 0),
+                    None => shader.env.background,
+                };
+                pixels[tile.index(at[l].0, at[l].1)] = c;
+            }
+        }
     }
 }

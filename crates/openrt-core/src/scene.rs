@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
-use openrt_accel::{InstanceBsp, Ray, Triangle, traverse};
+use openrt_accel::{InstanceBsp, Ray, Triangle, lanes_of, traverse, traverse_packet};
 
 use crate::instance::InstanceRecord;
 use crate::{InstanceId, Material, MaterialId, ObjectId, Texture};
@@ -168,6 +168,110 @@ impl Scene {
             }
             false
         })
+    }
+
+    /// [`Scene::intersect`] for the rays of the `lanes` mask at once: lane
+    /// `l` of the answer equals `intersect(&rays[l])` bit for bit (`None`
+    /// for lanes outside the mask).
+    ///
+    /// Two-level packet traversal (Wald, Benthin & Slusallek 2003, with the
+    /// packets of Wald et al. 2001): the packet walks the top-level BSP; in a
+    /// leaf, the lanes that have not yet tested an instance (a mailbox per
+    /// lane) are moved into its object space once and walk its kd-tree as a
+    /// packet, each up to its own closest hit.
+    #[must_use]
+    pub fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N] {
+        let mut best = [None; N];
+        let mut local = *rays;
+        let mut hits = [None; N];
+        self.walk_packet(rays, lanes, |i, inst, active, closest| {
+            for l in lanes_of(active) {
+                local[l] = inst.ray_to_object(&rays[l], closest[l]);
+            }
+            let found = inst.geometry.tree.intersect_packet(&local, active, closest, &mut hits);
+            for l in lanes_of(found) {
+                if let Some(h) = hits[l] {
+                    best[l] = Some(SceneHit {
+                        t: h.t,
+                        instance: i,
+                        prim: h.prim,
+                        b1: h.b1,
+                        b2: h.b2,
+                    });
+                }
+            }
+            0
+        });
+        best
+    }
+
+    /// [`Scene::occluded`] for the rays of the `lanes` mask at once: the
+    /// mask of the lanes whose ray is blocked.
+    #[must_use]
+    pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
+        let mut local = *rays;
+        self.walk_packet(rays, lanes, |_, inst, active, closest| {
+            for l in lanes_of(active) {
+                local[l] = inst.ray_to_object(&rays[l], closest[l]);
+            }
+            inst.geometry.tree.occluded_packet(&local, active)
+        })
+    }
+
+    /// The two-level walk of a packet, shared by both packet queries: each
+    /// lane clipped to the scene box, the top-level BSP walked by the packet
+    /// ([`traverse_packet`]), and `test(index, instance, lanes, closest)`
+    /// called with the lanes meeting that instance for the first time
+    /// (a mailbox per lane, as [`Scene::walk`] keeps per ray). `test`
+    /// returns the lanes it finished; the walk returns all finished lanes.
+    #[inline]
+    fn walk_packet<const N: usize, F>(&self, rays: &[Ray; N], lanes: u32, mut test: F) -> u32
+    where
+        F: FnMut(u32, &InstanceRecord, u32, &mut [f32; N]) -> u32,
+    {
+        let bounds = self.bsp.bounds();
+        let mut t0 = [0.0f32; N];
+        let mut t1 = [0.0f32; N];
+        let mut closest = [0.0f32; N];
+        let mut live = 0u32;
+        for l in lanes_of(lanes) {
+            if let Some((a, b)) = bounds.clip(&rays[l]) {
+                (t0[l], t1[l], closest[l]) = (a, b, rays[l].t_max);
+                live |= 1 << l;
+            }
+        }
+        if live == 0 {
+            return 0;
+        }
+        let mut mailbox = [[u32::MAX; MAILBOX]; N];
+        traverse_packet(
+            self.bsp.nodes(),
+            rays,
+            live,
+            &t0,
+            &t1,
+            &mut closest,
+            |leaf, active, closest| {
+                let mut done = 0u32;
+                for &i in self.bsp.leaf_items(leaf) {
+                    let mut fresh = 0u32;
+                    for l in lanes_of(active & !done) {
+                        let slot = &mut mailbox[l][i as usize % MAILBOX];
+                        if *slot != i {
+                            *slot = i;
+                            fresh |= 1 << l;
+                        }
+                    }
+                    if fresh != 0 {
+                        done |= test(i, &self.instances[i as usize], fresh, closest) & fresh;
+                        if done == active {
+                            break;
+                        }
+                    }
+                }
+                done
+            },
+        )
     }
 
     /// World-space shading information for a hit of `ray`.

@@ -3,7 +3,7 @@
 use glam::Vec3;
 use openrt_accel::Ray;
 
-use crate::{Environment, Scene};
+use crate::{Environment, PointLight, Scene, SceneHit, Surface};
 
 /// What a frame computes per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -98,28 +98,81 @@ pub(crate) struct Shader<'a> {
 /// How many back sides of one-sided surfaces a ray may pass before it gives up.
 const MAX_PASS_THROUGH: u32 = 16;
 
+/// A primary or secondary hit made ready for shading: everything the light
+/// loop and the bounces need, computed once. Splitting shading here lets a
+/// packet of pixels trace its shadow rays together between [`Shader::prepare`]
+/// and [`Shader::finish`], with the same arithmetic as one pixel alone.
+pub(crate) struct Prepared {
+    surf: Surface,
+    /// Unit direction of the incoming ray.
+    d: Vec3,
+    /// `true` when the ray arrives at the back of the geometric normal.
+    back: bool,
+    /// Geometric normal facing the incoming ray.
+    nf: Vec3,
+    /// Shading normal on the side of `nf`.
+    ns: Vec3,
+    /// Origin of rays leaving on the incoming side (shadow and mirror rays).
+    p_out: Vec3,
+}
+
 impl Shader<'_> {
     /// Radiance along `ray` (`depth` = number of bounces so far).
     pub fn trace(&mut self, ray: &Ray, depth: u32) -> Vec3 {
+        let hit = self.scene.intersect(ray);
+        let Some(prep) = self.prepare(ray, hit) else {
+            return self.env.background;
+        };
+        // PERF: one bit per light on the stack; a scene with more lights
+        // than bits keeps a list.
+        let lights = &self.env.lights;
+        let mut bits = 0u64;
+        let mut list = Vec::new();
+        if lights.len() > 64 {
+            list.resize(lights.len(), false);
+        }
+        for (j, light) in lights.iter().enumerate() {
+            if let Some(shadow) = self.shadow_ray(&prep, light) {
+                self.counts.shadow += 1;
+                if self.scene.occluded(&shadow) {
+                    if let Some(b) = list.get_mut(j) {
+                        *b = true;
+                    } else {
+                        bits |= 1 << j;
+                    }
+                }
+            }
+        }
+        self.finish(
+            &prep,
+            |j| list.get(j).copied().unwrap_or(bits & (1 << (j & 63)) != 0),
+            depth,
+        )
+    }
+
+    /// The surface that `ray` shades, given its first hit: one-sided
+    /// surfaces seen from the back are passed through (traced again from
+    /// behind them, up to [`MAX_PASS_THROUGH`] times). `None` when the ray
+    /// leaves the scene.
+    pub fn prepare(&self, ray: &Ray, first: Option<SceneHit>) -> Option<Prepared> {
         let scene = self.scene;
         let mut ray = *ray;
+        let mut hit = first;
         let mut passes = 0;
         let surf = loop {
-            let Some(hit) = scene.intersect(&ray) else {
-                return self.env.background;
-            };
-            let surf = scene.surface(&ray, &hit);
+            let h = hit?;
+            let surf = scene.surface(&ray, &h);
             let mat = &scene.materials()[surf.material.index() as usize];
             if mat.one_sided && surf.geometric_normal.dot(ray.dir) > 0.0 && passes < MAX_PASS_THROUGH {
                 passes += 1;
                 // The ray leaves through the back: move along the normal, the side it goes to.
                 let o = offset_ray_origin(surf.point, surf.geometric_normal, surf.error_scale);
                 ray = Ray::new(o, ray.dir, 0.0, f32::INFINITY);
+                hit = scene.intersect(&ray);
                 continue;
             }
             break surf;
         };
-        let mat = &scene.materials()[surf.material.index() as usize];
         let d = ray.dir.normalize();
         // Normals facing the incoming ray.
         let back = surf.geometric_normal.dot(d) > 0.0;
@@ -132,6 +185,35 @@ impl Shader<'_> {
         if ns.dot(nf) < 0.0 {
             ns = -ns;
         }
+        let p_out = offset_ray_origin(surf.point, nf, surf.error_scale);
+        Some(Prepared {
+            surf,
+            d,
+            back,
+            nf,
+            ns,
+            p_out,
+        })
+    }
+
+    /// The shadow ray towards `light` that Whitted mode traces for a
+    /// prepared hit, `None` when no ray is traced (local mode, or the light
+    /// lies behind the surface or at the hit point).
+    pub fn shadow_ray(&self, prep: &Prepared, light: &PointLight) -> Option<Ray> {
+        if self.mode != RenderMode::Whitted || lit_side(prep, light).is_none() {
+            return None;
+        }
+        Some(Ray::new(prep.p_out, light.position - prep.p_out, 0.0, 1.0 - 1e-4))
+    }
+
+    /// The radiance of a prepared hit, with `blocked(j)` telling whether
+    /// light `j`'s shadow ray (from [`Shader::shadow_ray`]) is occluded;
+    /// traces the reflection and refraction rays below `max_depth`.
+    pub fn finish(&mut self, prep: &Prepared, blocked: impl Fn(usize) -> bool, depth: u32) -> Vec3 {
+        let scene = self.scene;
+        let surf = &prep.surf;
+        let (d, back, nf, ns, p_out) = (prep.d, prep.back, prep.nf, prep.ns, prep.p_out);
+        let mat = &scene.materials()[surf.material.index() as usize];
         let tex = mat
             .texture
             .and_then(|t| scene.textures().get(t.index() as usize))
@@ -139,19 +221,10 @@ impl Shader<'_> {
         let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
         let mut color = self.env.ambient * ka;
         let view = -d;
-        let p_out = offset_ray_origin(surf.point, nf, surf.error_scale);
-        for light in &self.env.lights {
-            let to_light = light.position - surf.point;
-            let Some(l) = to_light.try_normalize() else { continue };
-            if l.dot(nf) <= 0.0 {
+        for (j, light) in self.env.lights.iter().enumerate() {
+            let Some(l) = lit_side(prep, light) else { continue };
+            if self.mode == RenderMode::Whitted && blocked(j) {
                 continue;
-            }
-            if self.mode == RenderMode::Whitted {
-                self.counts.shadow += 1;
-                let shadow = Ray::new(p_out, light.position - p_out, 0.0, 1.0 - 1e-4);
-                if scene.occluded(&shadow) {
-                    continue;
-                }
             }
             let mut c = kd * ns.dot(l).max(0.0);
             if mat.shininess > 0.0 && mat.specular != Vec3::ZERO {
@@ -191,6 +264,15 @@ impl Shader<'_> {
         }
         color
     }
+}
+
+/// The unit direction to `light` when it lies on the side of the surface
+/// the ray came from (and not at the hit point): only then does it light
+/// the hit.
+#[inline]
+fn lit_side(prep: &Prepared, light: &PointLight) -> Option<Vec3> {
+    let to_light = light.position - prep.surf.point;
+    to_light.try_normalize().filter(|l| l.dot(prep.nf) > 0.0)
 }
 
 /// Snell refraction of unit `d` through unit normal `n` facing the incoming

@@ -1,0 +1,171 @@
+//! Ray packets: the lane width chosen for the CPU, lane masks, and the
+//! grouping of a packet's rays by direction signs.
+//!
+//! A packet is an array of `N` [`Ray`]s with a `u32` mask of the lanes in
+//! use. Packet traversal ([`crate::traverse_packet`]) needs every active
+//! lane to share the signs of its direction components (then the near/far
+//! order of every split is the same for all lanes) and to have no zero
+//! component (whose side of a plane the origin decides); [`sign_groups`]
+//! splits a packet into such groups and the lanes that must walk alone.
+//! Wald, Benthin, Wagner & Slusallek, "Interactive Rendering with Coherent
+//! Ray Tracing", Eurographics 2001, for packets through kd-trees.
+
+use std::sync::OnceLock;
+
+use crate::Ray;
+
+/// Widest packet any kernel is instantiated for (one AVX-512 register of `f32`).
+pub const MAX_LANES: usize = 16;
+
+/// Environment variable that overrides the packet width (4, 8 or 16).
+pub const LANES_ENV: &str = "OPENRT_PACKET_LANES";
+
+/// The packet widths the kernels are instantiated for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PacketWidth {
+    /// 4 lanes: SSE or NEON, and the portable baseline.
+    W4,
+    /// 8 lanes: AVX2.
+    W8,
+    /// 16 lanes: AVX-512.
+    W16,
+}
+
+impl PacketWidth {
+    /// Lanes in a packet of this width.
+    #[must_use]
+    pub const fn lanes(self) -> usize {
+        match self {
+            Self::W4 => 4,
+            Self::W8 => 8,
+            Self::W16 => 16,
+        }
+    }
+
+    /// The width for `lanes` (4, 8 or 16).
+    #[must_use]
+    pub const fn from_lanes(lanes: usize) -> Option<Self> {
+        match lanes {
+            4 => Some(Self::W4),
+            8 => Some(Self::W8),
+            16 => Some(Self::W16),
+            _ => None,
+        }
+    }
+
+    /// The width for this CPU, detected once: 16 lanes with AVX-512, 8 with
+    /// AVX2, else 4. [`LANES_ENV`] overrides it (an unknown value is ignored
+    /// with the detected width kept).
+    #[must_use]
+    pub fn detect() -> Self {
+        static WIDTH: OnceLock<PacketWidth> = OnceLock::new();
+        *WIDTH.get_or_init(|| {
+            std::env::var(LANES_ENV)
+                .ok()
+                .and_then(|v| v.trim().parse().ok())
+                .and_then(Self::from_lanes)
+                .unwrap_or_else(Self::cpu)
+        })
+    }
+
+    /// The widest width the CPU's vector registers hold.
+    #[must_use]
+    pub fn cpu() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Self::W16;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Self::W8;
+            }
+        }
+        Self::W4
+    }
+}
+
+/// The mask of the first `n` lanes.
+#[inline]
+#[must_use]
+pub const fn lanes_mask(n: usize) -> u32 {
+    if n >= 32 { u32::MAX } else { (1u32 << n) - 1 }
+}
+
+/// Lane indices of a mask, lowest first.
+#[inline]
+pub fn lanes_of(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        if mask == 0 {
+            return None;
+        }
+        let l = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        Some(l)
+    })
+}
+
+/// The lanes of `mask` split by the signs of their direction: `groups[s]`
+/// holds the lanes whose negative components are the bits of `s` (x = 1,
+/// y = 2, z = 4) and that have no zero component; `alone` the lanes with a
+/// zero component (either sign), which walk by themselves.
+#[inline]
+#[must_use]
+pub fn sign_groups<const N: usize>(rays: &[Ray; N], mask: u32) -> ([u32; 8], u32) {
+    let mut groups = [0u32; 8];
+    let mut alone = 0u32;
+    for l in lanes_of(mask) {
+        let d = rays[l].dir;
+        if d.cmpeq(glam::Vec3::ZERO).any() {
+            alone |= 1 << l;
+        } else {
+            groups[d.is_negative_bitmask() as usize] |= 1 << l;
+        }
+    }
+    (groups, alone)
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+
+    #[test]
+    fn widths_round_trip_and_detection_gives_a_known_width() {
+        for w in [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16] {
+            assert_eq!(PacketWidth::from_lanes(w.lanes()), Some(w));
+            assert!(w.lanes() <= MAX_LANES);
+        }
+        assert_eq!(PacketWidth::from_lanes(5), None);
+        assert!(PacketWidth::detect().lanes() >= 4);
+    }
+
+    #[test]
+    fn lanes_are_listed_lowest_first() {
+        assert_eq!(lanes_of(0b1010_0001).collect::<Vec<_>>(), vec![0, 5, 7]);
+        assert_eq!(lanes_of(0).count(), 0);
+        assert_eq!(lanes_mask(4), 0xF);
+        assert_eq!(lanes_mask(32), u32::MAX);
+    }
+
+    #[test]
+    fn signs_group_lanes_and_zero_components_walk_alone() {
+        let r = |d: Vec3| Ray::infinite(Vec3::ZERO, d);
+        let rays = [
+            r(Vec3::new(1.0, 1.0, 1.0)),
+            r(Vec3::new(-1.0, 1.0, 1.0)),
+            r(Vec3::new(1.0, 2.0, 3.0)),
+            r(Vec3::new(1.0, -0.0, 1.0)),
+            r(Vec3::new(-1.0, -1.0, -1.0)),
+            r(Vec3::new(0.0, 1.0, 1.0)),
+            r(Vec3::new(1.0, 1.0, 1.0)),
+            r(Vec3::new(1.0, 1.0, 1.0)),
+        ];
+        let (g, alone) = sign_groups(&rays, 0b0111_1111);
+        assert_eq!(g[0], 0b0000_0101);
+        assert_eq!(g[1], 0b0000_0010);
+        assert_eq!(g[7], 0b0001_0000);
+        assert_eq!(alone, 0b0010_1000);
+        assert_eq!(g.iter().fold(alone, |a, m| a | m), 0b0111_1111);
+    }
+}

@@ -1,0 +1,240 @@
+//! Front-to-back kd-tree traversal of a ray packet, shared by object trees
+//! and the top-level instance tree: the scalar walk of [`crate::traverse`]
+//! made lane-parallel, one node load and one decision per step for the
+//! whole packet.
+//!
+//! Wald, Benthin, Wagner & Slusallek, "Interactive Rendering with Coherent
+//! Ray Tracing" (Eurographics 2001): the lanes share the order of every
+//! split (common direction signs), each lane keeps its own parameter
+//! interval, and a subtree is entered with the lanes that need it.
+//!
+//! NOTE: every lane makes exactly the decisions of its scalar walk, in the
+//! same arithmetic (the split distance, the `BOUND` widening, the interval
+//! updates and the pop test), and meets its leaves in the same order, so a
+//! lane's hits are bit-identical to [`crate::traverse`]'s (tested against
+//! it). One care: a lane that the scalar walk sends to the far child alone
+//! goes there at once, without the pop test against its closest hit; here it
+//! waits on the stack behind the near subtree, so its entry carries it in an
+//! `unchecked` mask that the pop test lets through.
+
+use crate::kdnode::{KdNode, MAX_DEPTH};
+use crate::packet::{lanes_of, sign_groups};
+use crate::traverse::{BOUND, traverse};
+use crate::{MAX_LANES, Ray};
+
+/// A deferred far child with the lanes that visit it and their intervals.
+#[derive(Clone, Copy)]
+struct Entry<const N: usize> {
+    node: u32,
+    /// Lanes that visit the far child.
+    mask: u32,
+    /// Lanes among those that the scalar walk sends there without the pop test.
+    unchecked: u32,
+    t_min: [f32; N],
+    t_max: [f32; N],
+}
+
+/// The bits of the lanes where `f(lane)` holds.
+// PERF: forced inline so that the lane loop and `f` compile to one vector compare.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn bits<const N: usize>(f: impl Fn(usize) -> bool) -> u32 {
+    let mut m = 0u32;
+    for l in 0..N {
+        m |= u32::from(f(l)) << l;
+    }
+    m
+}
+
+/// Walks the cells pierced by the rays of the `lanes` mask, each over its
+/// `[t0, t1]`, front to back, and calls `leaf(node, lanes, closest)` for each
+/// non-empty leaf with the lanes that visit it, where `closest[l]` is lane
+/// `l`'s closest hit distance, which the callback lowers when it finds a
+/// closer hit. The callback returns the lanes that are done (any-hit
+/// queries); they take no further part. Returns the lanes the callback
+/// finished.
+///
+/// Lanes that share direction signs walk together; lanes with a zero
+/// direction component walk alone through [`crate::traverse`]. For each lane
+/// the leaves met, their order and the closest distances seen are those of
+/// [`crate::traverse`] on that lane's ray alone.
+pub fn traverse_packet<const N: usize, L>(
+    nodes: &[KdNode],
+    rays: &[Ray; N],
+    lanes: u32,
+    t0: &[f32; N],
+    t1: &[f32; N],
+    closest: &mut [f32; N],
+    mut leaf: L,
+) -> u32
+where
+    L: FnMut(KdNode, u32, &mut [f32; N]) -> u32,
+{
+    const { assert!(N <= MAX_LANES) };
+    if nodes.is_empty() {
+        return 0;
+    }
+    // The scalar walk's own early exit, per lane.
+    let lanes = lanes & bits::<N>(|l| !(t0[l].is_nan() || t1[l].is_nan() || t0[l] > t1[l]));
+    let (groups, alone) = sign_groups(rays, lanes);
+    let mut done = 0;
+    for (signs, &group) in groups.iter().enumerate() {
+        match group.count_ones() {
+            0 => {}
+            // PERF: a lone lane takes the scalar walk (no lane loops).
+            1 => done |= alone_walk(nodes, rays, group, t0, t1, closest, &mut leaf),
+            _ => done |= walk(nodes, rays, group, signs as u32, t0, t1, closest, &mut leaf),
+        }
+    }
+    for l in lanes_of(alone) {
+        done |= alone_walk(nodes, rays, 1 << l, t0, t1, closest, &mut leaf);
+    }
+    done
+}
+
+/// The scalar walk of the one lane in `lane`, reporting to the packet callback.
+fn alone_walk<const N: usize, L>(
+    nodes: &[KdNode],
+    rays: &[Ray; N],
+    lane: u32,
+    t0: &[f32; N],
+    t1: &[f32; N],
+    closest: &mut [f32; N],
+    leaf: &mut L,
+) -> u32
+where
+    L: FnMut(KdNode, u32, &mut [f32; N]) -> u32,
+{
+    let l = lane.trailing_zeros() as usize;
+    let mut c = closest[l];
+    let stopped = traverse(nodes, &rays[l], t0[l], t1[l], &mut c, |n, cl| {
+        closest[l] = *cl;
+        let stop = leaf(n, lane, closest) & lane != 0;
+        *cl = closest[l];
+        stop
+    });
+    closest[l] = c;
+    if stopped { lane } else { 0 }
+}
+
+/// The packet walk of `lanes`, which share the direction signs `signs`
+/// (bit `k`: component `k` negative) and have no zero component.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn walk<const N: usize, L>(
+    nodes: &[KdNode],
+    rays: &[Ray; N],
+    lanes: u32,
+    signs: u32,
+    t0: &[f32; N],
+    t1: &[f32; N],
+    closest: &mut [f32; N],
+    leaf: &mut L,
+) -> u32
+where
+    L: FnMut(KdNode, u32, &mut [f32; N]) -> u32,
+{
+    // Origins and safe reciprocal directions, axis by axis (lanes outside
+    // `lanes` compute with whatever they hold and are never looked at).
+    let mut org = [[0.0f32; N]; 3];
+    let mut inv = [[0.0f32; N]; 3];
+    for l in 0..N {
+        let (o, i) = (rays[l].origin.to_array(), rays[l].inv_dir.to_array());
+        for a in 0..3 {
+            org[a][l] = o[a];
+            inv[a][l] = i[a];
+        }
+    }
+    let mut t_min: [f32; N] = std::array::from_fn(|l| t0[l] - t0[l].abs() * BOUND);
+    let mut t_max: [f32; N] = std::array::from_fn(|l| t1[l] + t1[l].abs() * BOUND);
+    // PERF: the stack is not zeroed: entries are written before they are read.
+    let mut stack = [std::mem::MaybeUninit::<Entry<N>>::uninit(); MAX_DEPTH];
+    let mut sp = 0usize;
+    let mut node = 0u32;
+    let mut active = lanes;
+    let mut done = 0u32;
+    'walk: loop {
+        let n = nodes[node as usize];
+        'cell: {
+            if n.is_leaf() {
+                if n.prim_count() > 0 {
+                    let d = leaf(n, active, closest) & active;
+                    if d != 0 {
+                        done |= d;
+                        if done == lanes {
+                            return done;
+                        }
+                    }
+                }
+                break 'cell;
+            }
+            let axis = n.axis();
+            let split = n.split();
+            let (o, iv) = (&org[axis], &inv[axis]);
+            let below = (node + 1, n.below_empty());
+            let above = (n.above_child(), n.above_child() == 0);
+            let ((near, near_empty), (far, far_empty)) = if (signs >> axis) & 1 != 0 {
+                (above, below)
+            } else {
+                (below, above)
+            };
+            let t_split: [f32; N] = std::array::from_fn(|l| (split - o[l]) * iv[l]);
+            // The plane lies before / beyond each lane's interval (false for NaN).
+            let before = bits::<N>(|l| t_split[l] < t_min[l]);
+            let beyond = bits::<N>(|l| t_split[l] > t_max[l]);
+            let go_near = if near_empty { 0 } else { active & !before };
+            let go_far = if far_empty { 0 } else { active & !beyond };
+            if go_near != 0 {
+                if go_far != 0 {
+                    let mut e = Entry {
+                        node: far,
+                        mask: go_far,
+                        unchecked: go_far & !go_near,
+                        t_min,
+                        t_max,
+                    };
+                    for l in 0..N {
+                        let lo = t_split[l] - t_split[l].abs() * BOUND;
+                        e.t_min[l] = if lo > t_min[l] { lo } else { t_min[l] };
+                    }
+                    stack[sp].write(e);
+                    sp += 1;
+                }
+                for l in 0..N {
+                    let hi = t_split[l] + t_split[l].abs() * BOUND;
+                    t_max[l] = if hi < t_max[l] { hi } else { t_max[l] };
+                }
+                active = go_near;
+                node = near;
+                continue 'walk;
+            }
+            if go_far != 0 {
+                for l in 0..N {
+                    let lo = t_split[l] - t_split[l].abs() * BOUND;
+                    t_min[l] = if lo > t_min[l] { lo } else { t_min[l] };
+                }
+                active = go_far;
+                node = far;
+                continue 'walk;
+            }
+        }
+        // Pop, skipping lanes whose cell starts beyond their closest hit.
+        loop {
+            if sp == 0 {
+                return done;
+            }
+            sp -= 1;
+            // SAFETY: entries below `sp` were written by a push.
+            let e = unsafe { stack[sp].assume_init_ref() };
+            let near_enough = bits::<N>(|l| e.t_min[l] <= closest[l]);
+            let m = e.mask & !done & (near_enough | e.unchecked);
+            if m != 0 {
+                node = e.node;
+                active = m;
+                t_min = e.t_min;
+                t_max = e.t_max;
+                break;
+            }
+        }
+    }
+}

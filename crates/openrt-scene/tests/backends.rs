@@ -1,0 +1,233 @@
+//! The packet backend against the single-ray path on real scenes.
+//!
+//! - Every packet answer of the two-level scene equals the single-ray answer
+//!   bit for bit (t, instance, triangle, barycentrics; occlusion), for the
+//!   primary, shadow, reflection and refraction rays of real frames, in
+//!   coherent packets and in shuffled ones that mix direction signs, at
+//!   every packet width.
+//! - `Backend::Kd` and `Backend::KdSingle` render the same bytes for every
+//!   shipped small scene, in both modes, on 1 and 2 threads and at every
+//!   packet width; the BART kitchen and museum frames too, when the data is
+//!   there (see `bart.rs` for how it is found).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use openrt_accel::{PacketWidth, Ray, lanes_mask};
+use openrt_core::{
+    Backend, Camera, Environment, RenderMode, RenderSettings, Renderer, Scene, SceneHit, offset_ray_origin,
+};
+use openrt_scene::ScenePlayer;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+const WIDTHS: [PacketWidth; 3] = [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16];
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn bart() -> Option<PathBuf> {
+    let dir = std::env::var_os("OPENRT_BART_DIR").map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bart"),
+        PathBuf::from,
+    );
+    if dir.join("kitchen/kitchen.aff").is_file() {
+        return Some(dir);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "BART data missing at {} (set OPENRT_BART_DIR)",
+        dir.display()
+    );
+    println!(
+        "skipped: BART data not found at {} (set OPENRT_BART_DIR)",
+        dir.display()
+    );
+    None
+}
+
+fn bits(h: Option<SceneHit>) -> Option<(u32, u32, u32, u32, u32)> {
+    h.map(|h| (h.t.to_bits(), h.instance, h.prim, h.b1.to_bits(), h.b2.to_bits()))
+}
+
+/// The rays of a frame at `w` x `h`: primary rays, then from each hit a
+/// shadow ray per light, a mirror ray and a refracted ray (index 1.5).
+fn frame_rays(scene: &Scene, env: &Environment, cam: &Camera, w: u32, h: u32) -> [Vec<Ray>; 4] {
+    let cr = cam.rays(w, h).unwrap();
+    let primary: Vec<Ray> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| cr.ray(x, y))
+        .collect();
+    let (mut shadow, mut mirror, mut refr) = (Vec::new(), Vec::new(), Vec::new());
+    for r in &primary {
+        let Some(hit) = scene.intersect(r) else { continue };
+        let s = scene.surface(r, &hit);
+        let d = r.dir.normalize();
+        let n = if s.geometric_normal.dot(d) > 0.0 {
+            -s.geometric_normal
+        } else {
+            s.geometric_normal
+        };
+        let out = offset_ray_origin(s.point, n, s.error_scale);
+        for l in &env.lights {
+            shadow.push(Ray::new(out, l.position - out, 0.0, 1.0 - 1e-4));
+        }
+        mirror.push(Ray::infinite(out, d - 2.0 * d.dot(n) * n));
+        let (eta, c) = (1.0 / 1.5, -d.dot(n));
+        let k = 1.0 - eta * eta * (1.0 - c * c);
+        if k >= 0.0 {
+            let t = (d * eta + n * (eta * c - k.sqrt())).normalize();
+            refr.push(Ray::infinite(offset_ray_origin(s.point, -n, s.error_scale), t));
+        }
+    }
+    [primary, shadow, mirror, refr]
+}
+
+/// Every packet answer against the single-ray one; returns (hits, lanes).
+fn compare<const N: usize>(name: &str, scene: &Scene, rays: &[Ray], seed: u64) -> (usize, usize) {
+    let mut rng = SmallRng::seed_from_u64(seed);
+    let mut shuffled = rays.to_vec();
+    for i in (1..shuffled.len()).rev() {
+        shuffled.swap(i, rng.random_range(0..=i));
+    }
+    let (mut hits, mut lanes_seen) = (0, 0);
+    for set in [rays, &shuffled[..]] {
+        for chunk in set.chunks(N) {
+            let pk: [Ray; N] = std::array::from_fn(|l| chunk[l % chunk.len()]);
+            let mut lanes = lanes_mask(chunk.len());
+            if rng.random_range(0..8) == 0 {
+                lanes &= rng.random::<u32>();
+            }
+            let got = scene.intersect_packet(&pk, lanes);
+            let occ = scene.occluded_packet(&pk, lanes);
+            for l in 0..N {
+                if lanes & (1 << l) == 0 {
+                    assert!(
+                        got[l].is_none() && occ & (1 << l) == 0,
+                        "{name}: inactive lane {l} answered"
+                    );
+                    continue;
+                }
+                let want = scene.intersect(&pk[l]);
+                assert_eq!(bits(got[l]), bits(want), "{name} N={N}: lane {l} {:?}", pk[l]);
+                assert_eq!(
+                    occ & (1 << l) != 0,
+                    scene.occluded(&pk[l]),
+                    "{name} N={N}: occluded {l}"
+                );
+                hits += usize::from(want.is_some());
+                lanes_seen += 1;
+            }
+        }
+    }
+    (hits, lanes_seen)
+}
+
+fn sweep(name: &str, player: &mut ScenePlayer, frames: &[u32], w: u32, h: u32) {
+    for &f in frames {
+        let t = player.time_of(f);
+        player.set_time(t).unwrap();
+        let scene = player.ctx().scene();
+        let env = player.env();
+        let kinds = frame_rays(&scene, &env, &player.camera(t), w, h);
+        for (kind, rays) in ["primary", "shadow", "reflection", "refraction"].iter().zip(&kinds) {
+            let tag = format!("{name} frame {f} {kind}");
+            // Lanes are masked at random, so counts differ between widths.
+            for (h, n) in [
+                compare::<4>(&tag, &scene, rays, u64::from(f) + 1),
+                compare::<8>(&tag, &scene, rays, u64::from(f) + 2),
+                compare::<16>(&tag, &scene, rays, u64::from(f) + 3),
+            ] {
+                if *kind == "primary" {
+                    assert!(h > 0 && h <= n, "{tag}: {h} hits in {n} lanes");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn packets_answer_as_single_rays_on_the_shipped_scenes() {
+    for name in ["room", "slab", "textured", "animated"] {
+        let mut p = ScenePlayer::open(Some(&repo().join(format!("scenes/{name}.ron")))).unwrap();
+        let frames: Vec<u32> = [0, p.frames() / 2, p.frames().saturating_sub(1)].into();
+        sweep(name, &mut p, &frames, 64, 48);
+    }
+}
+
+#[test]
+fn packets_answer_as_single_rays_on_the_bart_scenes() {
+    let Some(dir) = bart() else { return };
+    let mut k = ScenePlayer::open(Some(&dir.join("kitchen/kitchen.aff"))).unwrap();
+    sweep("kitchen", &mut k, &[0, 400], 80, 60);
+    let mut m = ScenePlayer::open(Some(&dir.join("museum/museum5.aff"))).unwrap();
+    sweep("museum5", &mut m, &[0, 200], 80, 60);
+}
+
+fn render(
+    player: &ScenePlayer,
+    t: f32,
+    mode: RenderMode,
+    threads: usize,
+    backend: Backend,
+    width: PacketWidth,
+) -> Vec<u8> {
+    let mut r = Renderer::new(threads);
+    r.set_backend(backend);
+    r.set_packet_width(width);
+    let s = RenderSettings {
+        width: 93,
+        height: 61,
+        mode,
+        max_depth: 3,
+    };
+    let env: Arc<Environment> = player.env();
+    let (img, stats) = r.render(&player.ctx().scene(), &env, &player.camera(t), &s).unwrap();
+    assert_eq!(stats.rays.primary, 93 * 61);
+    img.to_rgb8()
+}
+
+fn same_bytes(name: &str, player: &mut ScenePlayer, frame: u32) {
+    let t = player.time_of(frame);
+    player.set_time(t).unwrap();
+    for mode in [RenderMode::GlLike, RenderMode::Whitted] {
+        let want = render(player, t, mode, 1, Backend::KdSingle, PacketWidth::W4);
+        for threads in [1, 2] {
+            for w in WIDTHS {
+                let got = render(player, t, mode, threads, Backend::Kd, w);
+                assert!(
+                    got == want,
+                    "{name} frame {frame} {mode:?}: kd ({w:?}, {threads} threads) differs"
+                );
+            }
+        }
+        assert!(
+            want.iter().any(|&b| b != want[0]),
+            "{name}: a blank image proves nothing"
+        );
+    }
+}
+
+#[test]
+fn kd_and_kd_single_render_the_same_bytes() {
+    for name in ["room", "slab", "textured", "animated"] {
+        let mut p = ScenePlayer::open(Some(&repo().join(format!("scenes/{name}.ron")))).unwrap();
+        let last = p.frames().saturating_sub(1);
+        same_bytes(name, &mut p, last / 2);
+    }
+    let Some(dir) = bart() else { return };
+    let mut k = ScenePlayer::open(Some(&dir.join("kitchen/kitchen.aff"))).unwrap();
+    same_bytes("kitchen", &mut k, 100);
+    let mut m = ScenePlayer::open(Some(&dir.join("museum/museum5.aff"))).unwrap();
+    same_bytes("museum5", &mut m, 100);
+}
+
+#[test]
+fn backends_parse_from_their_names() {
+    for b in Backend::ALL {
+        assert_eq!(b.name().parse::<Backend>(), Ok(b));
+    }
+    let e = "embree-x".parse::<Backend>().unwrap_err();
+    assert!(e.contains("kd-single"), "{e}");
+}
