@@ -6,7 +6,7 @@ use std::time::Instant;
 use eframe::egui;
 use egui_file_dialog::FileDialog;
 use openrt_accel::BuilderKind;
-use openrt_core::{Camera, RenderMode, RenderSettings};
+use openrt_core::{Backend, Camera, RenderMode, RenderSettings};
 
 use crate::orbit;
 use crate::worker::{FrameResult, Reply, Request, SceneInfo, Worker};
@@ -43,6 +43,7 @@ pub struct ViewerApp {
     // Quality.
     mode: RenderMode,
     depth: u32,
+    backend: Backend,
     threads: usize,
     scale: f32,
     // Statistics.
@@ -81,6 +82,7 @@ impl ViewerApp {
             moving_until: Instant::now(),
             mode: RenderMode::GlLike,
             depth: 3,
+            backend: Backend::default(),
             threads: opts.threads,
             scale: 0.5,
             frames_rendered: 0,
@@ -124,6 +126,7 @@ impl ViewerApp {
             camera,
             settings,
             threads: self.threads,
+            backend: self.backend,
         };
         if self.worker.tx.send(req).is_ok() {
             self.in_flight = true;
@@ -329,6 +332,12 @@ impl ViewerApp {
                 .radio_value(&mut self.mode, RenderMode::GlLike, "OpenGL-like")
                 .changed();
             self.dirty |= ui.radio_value(&mut self.mode, RenderMode::Whitted, "Whitted").changed();
+        });
+        ui.horizontal(|ui| {
+            ui.label("traversal");
+            for b in Backend::ALL {
+                self.dirty |= ui.radio_value(&mut self.backend, b, b.name()).changed();
+            }
         });
         self.dirty |= ui
             .add(egui::Slider::new(&mut self.depth, 0..=8).text("reflection depth"))

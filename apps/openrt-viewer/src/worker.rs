@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use crossbeam::channel::{Receiver, Sender, unbounded};
-use openrt_core::{Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer};
+use openrt_core::{Backend, Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer};
 use openrt_scene::ScenePlayer;
 
 /// What the UI asks for.
@@ -19,6 +19,7 @@ pub enum Request {
         camera: Option<Camera>,
         settings: RenderSettings,
         threads: usize,
+        backend: Backend,
     },
 }
 
@@ -114,12 +115,14 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                     camera,
                     settings,
                     threads,
+                    backend,
                 } => {
                     let Some(p) = player.as_mut() else { continue };
                     if renderer.as_ref().is_none_or(|r| r.threads() != threads) {
                         renderer = Some(Renderer::new(threads));
                     }
-                    let r = renderer.as_ref().expect("created above");
+                    let r = renderer.as_mut().expect("created above");
+                    r.set_backend(backend);
                     match render(p, r, time, camera, &settings) {
                         Ok(f) => Reply::Frame(Box::new(f)),
                         Err(e) => Reply::Error(e),

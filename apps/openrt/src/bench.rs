@@ -8,7 +8,8 @@ use std::time::Instant;
 use glam::Vec3;
 use openrt_accel::oracle::BruteForce;
 use openrt_accel::{BuilderKind, Hit};
-use openrt_core::{Image, RenderMode, RenderSettings, Renderer};
+use openrt_accel::{PacketWidth, Ray};
+use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, offset_ray_origin};
 use openrt_scene::ScenePlayer;
 
 /// Options of a benchmark run.
@@ -44,6 +45,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 struct Row {
     scene: String,
     mode: &'static str,
+    backend: &'static str,
     threads: usize,
     commit_ms: f64,
     toplevel_ms: f64,
@@ -90,8 +92,19 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>) -> Result<()
     let samples: Vec<u32> = (0..o.frames)
         .map(|k| ((k as u64 + 1) * u64::from(n) / (o.frames as u64 + 1)) as u32)
         .collect();
-    let renderers: Vec<Renderer> = o.threads.iter().map(|&t| Renderer::new(t)).collect();
-    let mut acc: Vec<Acc> = vec![Default::default(); 2 * o.threads.len()];
+    // One pool per (threads, backend), packets first.
+    let renderers: Vec<(usize, Renderer)> = o
+        .threads
+        .iter()
+        .flat_map(|&t| {
+            Backend::ALL.into_iter().map(move |b| {
+                let mut r = Renderer::new(t);
+                r.set_backend(b);
+                (t, r)
+            })
+        })
+        .collect();
+    let mut acc: Vec<Acc> = vec![Default::default(); 2 * renderers.len()];
     let (mut tri, mut inst) = (0, 0);
     for &f in &samples {
         let t = player.time_of(f);
@@ -100,12 +113,12 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>) -> Result<()
         (tri, inst) = (scene.instanced_triangles(), scene.instances().len());
         let cam = player.camera(t);
         let env = player.env();
-        for (ti, r) in renderers.iter().enumerate() {
+        for (ri, (_, r)) in renderers.iter().enumerate() {
             for (mi, mode) in [RenderMode::GlLike, RenderMode::Whitted].into_iter().enumerate() {
                 let (_, st) = r
                     .render(&scene, &env, &cam, &settings(o, mode, 3))
                     .map_err(|e| e.to_string())?;
-                let a = &mut acc[2 * ti + mi];
+                let a = &mut acc[2 * ri + mi];
                 a.0.push(c.total_ms);
                 a.1.push(c.toplevel_ms);
                 a.2.push(c.build_ms(BuilderKind::Fast));
@@ -115,13 +128,14 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>) -> Result<()
             }
         }
     }
-    for (ti, &threads) in o.threads.iter().enumerate() {
+    for (ri, (threads, r)) in renderers.iter().enumerate() {
         for (mi, mode) in ["GL-like", "Whitted"].into_iter().enumerate() {
-            let a = acc[2 * ti + mi].clone();
+            let a = acc[2 * ri + mi].clone();
             rows.push(Row {
                 scene: name.to_string(),
                 mode,
-                threads,
+                backend: r.backend().name(),
+                threads: *threads,
                 commit_ms: median(a.0),
                 toplevel_ms: median(a.1),
                 fast_ms: median(a.2),
@@ -134,6 +148,118 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>) -> Result<()
         }
     }
     Ok(())
+}
+
+/// One ray kind of a frame: (kind, Mrays/s single, Mrays/s packets, rays).
+struct KindRow {
+    kind: &'static str,
+    single: f64,
+    packet: f64,
+    rays: usize,
+}
+
+/// Ray queries alone, one thread, no shading: a frame's primary rays
+/// (closest hit) in the renderer's pixel blocks, and the shadow rays from
+/// their hits to each light (any hit), through `Scene::intersect`/`occluded`
+/// one by one and through the packet queries. Medians of 5 passes.
+fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), String> {
+    let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+    let t = player.time_of(player.frames() / 2);
+    player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
+    player.set_time(t).map_err(|e| e.to_string())?;
+    let scene = player.ctx().scene();
+    let env = player.env();
+    let cam = player.camera(t).rays(o.width, o.height).map_err(|e| e.to_string())?;
+    let lanes = PacketWidth::detect().lanes();
+    let (bw, bh) = match lanes {
+        4 => (2, 2),
+        8 => (4, 2),
+        _ => (4, 4),
+    };
+    // Pixel blocks in the renderer's order, each padded to full lanes.
+    let mut primary = Vec::new();
+    for by in (0..o.height).step_by(bh) {
+        for bx in (0..o.width).step_by(bw) {
+            for l in 0..lanes as u32 {
+                let (x, y) = (bx + l % bw as u32, by + l / bw as u32);
+                primary.push(cam.ray(x.min(o.width - 1), y.min(o.height - 1)));
+            }
+        }
+    }
+    let mut shadow = Vec::new();
+    for block in primary.chunks(lanes) {
+        for light in &env.lights {
+            for r in block {
+                let out = scene.intersect(r).map_or(r.origin, |h| {
+                    let s = scene.surface(r, &h);
+                    let n = if s.geometric_normal.dot(r.dir) > 0.0 {
+                        -s.geometric_normal
+                    } else {
+                        s.geometric_normal
+                    };
+                    offset_ray_origin(s.point, n, s.error_scale)
+                });
+                shadow.push(Ray::new(out, light.position - out, 0.0, 1.0 - 1e-4));
+            }
+        }
+    }
+    let time = |f: &mut dyn FnMut() -> usize| {
+        let mut v = Vec::new();
+        let mut sink = 0;
+        for _ in 0..5 {
+            let s = Instant::now();
+            sink += f();
+            v.push(s.elapsed().as_secs_f64());
+        }
+        std::hint::black_box(sink);
+        median(v)
+    };
+    let mut out = Vec::new();
+    for (kind, rays) in [("primary", &primary), ("shadow", &shadow)] {
+        let n = rays.len() as f64;
+        let closest = kind == "primary";
+        let single = time(&mut || {
+            rays.iter()
+                .filter(|r| {
+                    if closest {
+                        scene.intersect(r).is_some()
+                    } else {
+                        scene.occluded(r)
+                    }
+                })
+                .count()
+        });
+        let packet = time(&mut || match PacketWidth::detect() {
+            PacketWidth::W4 => packets::<4>(&scene, rays, closest),
+            PacketWidth::W8 => packets::<8>(&scene, rays, closest),
+            PacketWidth::W16 => packets::<16>(&scene, rays, closest),
+        });
+        out.push(KindRow {
+            kind,
+            single: n / single / 1e6,
+            packet: n / packet / 1e6,
+            rays: rays.len(),
+        });
+    }
+    Ok((lanes, out))
+}
+
+/// Hits (or blocked rays) of `rays` traced in packets of `N`.
+fn packets<const N: usize>(scene: &openrt_core::Scene, rays: &[Ray], closest: bool) -> usize {
+    rays.chunks_exact(N)
+        .map(|c| {
+            let pk: [Ray; N] = std::array::from_fn(|l| c[l]);
+            if closest {
+                scene
+                    .intersect_packet(&pk, u32::MAX >> (32 - N))
+                    .iter()
+                    .flatten()
+                    .count()
+            } else {
+                scene.occluded_packet(&pk, u32::MAX >> (32 - N)).count_ones() as usize
+            }
+        })
+        .sum()
 }
 
 /// Root-mean-square error (0..1 scale) and PSNR in dB between two images of the same size.
@@ -458,14 +584,15 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     );
     let _ = writeln!(
         md,
-        "## Frame rates on this machine\n\n| scene | mode | threads | fps | commit ms | top-level ms | fast rebuild ms | promotions | render ms | rays/frame | instances | triangles |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "## Frame rates on this machine\n\n| scene | mode | backend | threads | fps | commit ms | top-level ms | fast rebuild ms | promotions | render ms | rays/frame | instances | triangles |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for r in &rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} | {} | {:.1} | {:.0} | {} | {} |",
+            "| {} | {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} | {} | {:.1} | {:.0} | {} | {} |",
             r.scene,
             r.mode,
+            r.backend,
             r.threads,
             r.fps(),
             r.commit_ms,
@@ -478,6 +605,47 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
             r.triangles
         );
     }
+    let _ = writeln!(
+        md,
+        "\n## Ray packets against single rays\n\nThe same frames with `--backend kd` (packets of {} lanes on this CPU) and `--backend kd-single`; the images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`).\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single |\n|---|---|---:|---:|---:|---:|",
+        PacketWidth::detect().lanes()
+    );
+    for r in rows.iter().filter(|r| r.backend == Backend::Kd.name()) {
+        let single = rows.iter().find(|q| {
+            q.backend == Backend::KdSingle.name() && q.scene == r.scene && q.mode == r.mode && q.threads == r.threads
+        });
+        if let Some(q) = single {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.2} | {:.2} | {:.2}x |",
+                r.scene,
+                r.mode,
+                r.threads,
+                r.fps(),
+                q.fps(),
+                r.fps() / q.fps()
+            );
+        }
+    }
+    if let Some(first) = o.scenes.first() {
+        eprintln!("bench: ray kinds on {first}");
+        let (lanes, kinds) = ray_kinds(o, first)?;
+        let _ = writeln!(
+            md,
+            "\nRay queries alone on {first} (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit.\n\n| rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal 3x |\n|---|---:|---:|---:|---:|---|"
+        );
+        for k in &kinds {
+            let ratio = k.packet / k.single;
+            let verdict = if ratio >= 3.0 { "met" } else { "**not met**" };
+            let _ = writeln!(
+                md,
+                "| {} | {} | {:.2} | {:.2} | {ratio:.2}x | {verdict} |",
+                k.kind, k.rays, k.single, k.packet
+            );
+        }
+    }
+    // The tables below use the default backend.
+    let rows: Vec<Row> = rows.into_iter().filter(|r| r.backend == Backend::Kd.name()).collect();
     let _ = writeln!(
         md,
         "\n## Beside the paper (Wald, Benthin & Slusallek 2003, fps for 1/2/4/8/16 CPUs)\n\n| scene | mode | paper 1 | 2 | 4 | 8 | 16 | here, 1 thread | here, max threads | scaling |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"

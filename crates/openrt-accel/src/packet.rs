@@ -162,7 +162,7 @@ mod tests {
             r(Vec3::new(1.0, 1.0, 1.0)),
         ];
         let (g, alone) = sign_groups(&rays, 0b0111_1111);
-        assert_eq!(g[0], 0b0000_0101);
+        assert_eq!(g[0], 0b0100_0101);
         assert_eq!(g[1], 0b0000_0010);
         assert_eq!(g[7], 0b0001_0000);
         assert_eq!(alone, 0b0010_1000);
