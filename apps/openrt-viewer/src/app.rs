@@ -335,7 +335,7 @@ impl ViewerApp {
         });
         ui.horizontal(|ui| {
             ui.label("traversal");
-            for b in Backend::ALL {
+            for &b in Backend::ALL {
                 self.dirty |= ui.radio_value(&mut self.backend, b, b.name()).changed();
             }
         });

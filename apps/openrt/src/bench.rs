@@ -84,7 +84,29 @@ fn settings(o: &BenchOptions, mode: RenderMode, depth: u32) -> RenderSettings {
 /// Samples gathered per (threads, mode): commit, top-level, fast-build ms, promotions, render ms, rays.
 type Acc = (Vec<f64>, Vec<f64>, Vec<f64>, usize, Vec<f64>, Vec<f64>);
 
-fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>) -> Result<(), String> {
+/// How one backend's image of a frame differs from the `kd` backend's.
+struct ImageDiff {
+    scene: String,
+    mode: &'static str,
+    backend: &'static str,
+    /// The RGB bytes are identical.
+    identical: bool,
+    /// Share of pixels with a channel off by more than 8/255.
+    off_share: f64,
+}
+
+/// Compares `img` with the `kd` image of the same frame.
+fn image_diff(kd: &Image, img: &Image) -> (bool, f64) {
+    let (a, b) = (kd.to_rgb8(), img.to_rgb8());
+    let off = a
+        .chunks(3)
+        .zip(b.chunks(3))
+        .filter(|(p, q)| p.iter().zip(*q).any(|(x, y)| x.abs_diff(*y) > 8))
+        .count();
+    (a == b, off as f64 / (a.len() / 3).max(1) as f64)
+}
+
+fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut Vec<ImageDiff>) -> Result<(), String> {
     let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
     let n = player.frames();
     // Warm-up: the first commit builds every tree.
@@ -97,13 +119,27 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>) -> Result<()
         .threads
         .iter()
         .flat_map(|&t| {
-            Backend::ALL.into_iter().map(move |b| {
+            Backend::ALL.iter().map(move |&b| {
                 let mut r = Renderer::new(t);
                 r.set_backend(b);
                 (t, r)
             })
         })
         .collect();
+    // Warm-up: a peer backend builds its own scene on its first frame,
+    // as the kd trees were built by the warm-up commit above.
+    {
+        let scene = player.ctx().scene();
+        let tiny = RenderSettings {
+            width: 8,
+            height: 8,
+            ..settings(o, RenderMode::GlLike, 0)
+        };
+        for (_, r) in &renderers {
+            r.render(&scene, &player.env(), &player.camera(player.time_of(0)), &tiny)
+                .map_err(|e| e.to_string())?;
+        }
+    }
     let mut acc: Vec<Acc> = vec![Default::default(); 2 * renderers.len()];
     let (mut tri, mut inst) = (0, 0);
     for &f in &samples {
@@ -113,11 +149,27 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>) -> Result<()
         (tri, inst) = (scene.instanced_triangles(), scene.instances().len());
         let cam = player.camera(t);
         let env = player.env();
-        for (ri, (_, r)) in renderers.iter().enumerate() {
+        let mut kd_images: Vec<Image> = Vec::new();
+        for (ri, (threads, r)) in renderers.iter().enumerate() {
             for (mi, mode) in [RenderMode::GlLike, RenderMode::Whitted].into_iter().enumerate() {
-                let (_, st) = r
+                let (img, st) = r
                     .render(&scene, &env, &cam, &settings(o, mode, 3))
                     .map_err(|e| e.to_string())?;
+                // The first sampled frame's images on one thread, against kd's.
+                if f == samples[0] && *threads == o.threads[0] {
+                    if r.backend() == Backend::Kd {
+                        kd_images.push(img);
+                    } else if let Some(kd) = kd_images.get(mi) {
+                        let (identical, off_share) = image_diff(kd, &img);
+                        diffs.push(ImageDiff {
+                            scene: name.to_string(),
+                            mode: ["GL-like", "Whitted"][mi],
+                            backend: r.backend().name(),
+                            identical,
+                            off_share,
+                        });
+                    }
+                }
                 let a = &mut acc[2 * ri + mi];
                 a.0.push(c.total_ms);
                 a.1.push(c.toplevel_ms);
@@ -155,6 +207,8 @@ struct KindRow {
     kind: &'static str,
     single: f64,
     packet: f64,
+    /// Embree one by one and in packets (builds with `--features embree`).
+    embree: Option<(f64, f64)>,
     rays: usize,
 }
 
@@ -215,6 +269,13 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), Stri
         median(v)
     };
     let mut out = Vec::new();
+    // One Embree scene for both kinds (one device per process run).
+    #[cfg(feature = "embree")]
+    let em = {
+        let mut em = openrt_core::EmbreeScene::default();
+        em.sync(&scene).map_err(|e| e.to_string())?;
+        em
+    };
     for (kind, rays) in [("primary", &primary), ("shadow", &shadow)] {
         let n = rays.len() as f64;
         let closest = kind == "primary";
@@ -234,10 +295,33 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), Stri
             PacketWidth::W8 => packets::<8>(&scene, rays, closest),
             PacketWidth::W16 => packets::<16>(&scene, rays, closest),
         });
+        #[cfg(not(feature = "embree"))]
+        let embree = None;
+        #[cfg(feature = "embree")]
+        let embree = {
+            let one = time(&mut || {
+                rays.iter()
+                    .filter(|r| {
+                        if closest {
+                            em.intersect(r).is_some()
+                        } else {
+                            em.occluded(r)
+                        }
+                    })
+                    .count()
+            });
+            let pk = time(&mut || match PacketWidth::detect() {
+                PacketWidth::W4 => embree_packets::<4>(&em, rays, closest),
+                PacketWidth::W8 => embree_packets::<8>(&em, rays, closest),
+                PacketWidth::W16 => embree_packets::<16>(&em, rays, closest),
+            });
+            Some((n / one / 1e6, n / pk / 1e6))
+        };
         out.push(KindRow {
             kind,
             single: n / single / 1e6,
             packet: n / packet / 1e6,
+            embree,
             rays: rays.len(),
         });
     }
@@ -246,19 +330,33 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), Stri
 
 /// Hits (or blocked rays) of `rays` traced in packets of `N`.
 fn packets<const N: usize>(scene: &openrt_core::Scene, rays: &[Ray], closest: bool) -> usize {
+    let full = u32::MAX >> (32 - N);
+    packets_with::<N>(rays, |pk| {
+        if closest {
+            scene.intersect_packet(pk, full).iter().flatten().count()
+        } else {
+            scene.occluded_packet(pk, full).count_ones() as usize
+        }
+    })
+}
+
+/// Hits (or blocked rays) of `rays` through Embree's packet kernels of width `N`.
+#[cfg(feature = "embree")]
+fn embree_packets<const N: usize>(em: &openrt_core::EmbreeScene, rays: &[Ray], closest: bool) -> usize {
+    let full = u32::MAX >> (32 - N);
+    packets_with::<N>(rays, |pk| {
+        if closest {
+            em.intersect_packet(pk, full).iter().flatten().count()
+        } else {
+            em.occluded_packet(pk, full).count_ones() as usize
+        }
+    })
+}
+
+/// `query` over `rays` cut into packets of `N`, its answers summed.
+fn packets_with<const N: usize>(rays: &[Ray], mut query: impl FnMut(&[Ray; N]) -> usize) -> usize {
     rays.chunks_exact(N)
-        .map(|c| {
-            let pk: [Ray; N] = std::array::from_fn(|l| c[l]);
-            if closest {
-                scene
-                    .intersect_packet(&pk, u32::MAX >> (32 - N))
-                    .iter()
-                    .flatten()
-                    .count()
-            } else {
-                scene.occluded_packet(&pk, u32::MAX >> (32 - N)).count_ones() as usize
-            }
-        })
+        .map(|c| query(&std::array::from_fn(|l| c[l])))
         .sum()
 }
 
@@ -567,15 +665,21 @@ fn machine() -> String {
 pub fn run(o: &BenchOptions) -> Result<(), String> {
     let start = Instant::now();
     let mut rows = Vec::new();
+    let mut diffs = Vec::new();
     for s in &o.scenes {
         eprintln!("bench: {s}");
-        measure_scene(o, s, &mut rows)?;
+        measure_scene(o, s, &mut rows, &mut diffs)?;
     }
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "# Benchmarks\n\nGenerated by `{}` on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds, promotions) + render; fps = 1000 / frame time.\n",
+        "# Benchmarks\n\nGenerated by `{}` ({}) on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds, promotions) + render; fps = 1000 / frame time.\n",
         o.command,
+        if cfg!(feature = "embree") {
+            "a build with `--features embree`"
+        } else {
+            "a build without Embree"
+        },
         machine(),
         std::env::consts::ARCH,
         o.width,
@@ -607,39 +711,68 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     }
     let _ = writeln!(
         md,
-        "\n## Ray packets against single rays\n\nThe same frames with `--backend kd` (packets of {} lanes on this CPU) and `--backend kd-single`; the images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`).\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single |\n|---|---|---:|---:|---:|---:|",
+        "\n## Ray packets against single rays, and against Embree\n\nThe same frames through every backend of this build: `kd` (packets of {} lanes on this CPU), `kd-single`, and with `--features embree` Embree 3 one ray at a time (`embree`: rtcIntersect1/rtcOccluded1) and in packets of the same width (`embree-packet`: rtcIntersect4/8/16, rtcOccluded4/8/16), one Embree scene per object (HIGH quality, LOW for redefined objects) under a top-level scene committed every frame, its build counted in its render time. The kd images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`); Embree's differ only by its own hits. fps = 1000 / (commit + render).\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single | embree fps | embree-packet fps | kd / embree-packet | goal kd >= embree-packet |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---|",
         PacketWidth::detect().lanes()
     );
+    let find = |r: &Row, b: &str| {
+        rows.iter()
+            .find(|q| q.backend == b && q.scene == r.scene && q.mode == r.mode && q.threads == r.threads)
+            .map(Row::fps)
+    };
     for r in rows.iter().filter(|r| r.backend == Backend::Kd.name()) {
-        let single = rows.iter().find(|q| {
-            q.backend == Backend::KdSingle.name() && q.scene == r.scene && q.mode == r.mode && q.threads == r.threads
-        });
-        if let Some(q) = single {
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {:.2} | {:.2} | {:.2}x |",
-                r.scene,
-                r.mode,
-                r.threads,
-                r.fps(),
-                q.fps(),
-                r.fps() / q.fps()
-            );
-        }
+        let f = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+        let ratio = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}x", r.fps() / v));
+        let (single, em, emp) = (find(r, "kd-single"), find(r, "embree"), find(r, "embree-packet"));
+        let verdict = match emp {
+            Some(e) if r.fps() >= e => "met",
+            Some(_) => "**not met**",
+            None => "not measured (build without Embree)",
+        };
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {verdict} |",
+            r.scene,
+            r.mode,
+            r.threads,
+            r.fps(),
+            f(single),
+            ratio(single),
+            f(em),
+            f(emp),
+            ratio(emp),
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nImages against the `kd` image of the same frame (first sampled frame of each scene):\n\n| scene | mode | backend | same bytes | pixels off by more than 8/255 |\n|---|---|---|---|---:|"
+    );
+    for d in &diffs {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.3}% |",
+            d.scene,
+            d.mode,
+            d.backend,
+            if d.identical { "yes" } else { "no" },
+            100.0 * d.off_share
+        );
     }
     if let Some(first) = o.scenes.first() {
         eprintln!("bench: ray kinds on {first}");
         let (lanes, kinds) = ray_kinds(o, first)?;
         let _ = writeln!(
             md,
-            "\nRay queries alone on {first} (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit.\n\n| rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal 3x |\n|---|---:|---:|---:|---:|---|"
+            "\nRay queries alone on {first} (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit.\n\n| rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal 3x | embree Mrays/s | embree-packet Mrays/s | kd / embree-packet |\n|---|---:|---:|---:|---:|---|---:|---:|---:|"
         );
         for k in &kinds {
             let ratio = k.packet / k.single;
             let verdict = if ratio >= 3.0 { "met" } else { "**not met**" };
+            let (em, emp, vs) = k.embree.map_or(("-".into(), "-".into(), "-".into()), |(a, b)| {
+                (format!("{a:.2}"), format!("{b:.2}"), format!("{:.2}x", k.packet / b))
+            });
             let _ = writeln!(
                 md,
-                "| {} | {} | {:.2} | {:.2} | {ratio:.2}x | {verdict} |",
+                "| {} | {} | {:.2} | {:.2} | {ratio:.2}x | {verdict} | {em} | {emp} | {vs} |",
                 k.kind, k.rays, k.single, k.packet
             );
         }

@@ -3,7 +3,10 @@
 //! Only used to measure: the same triangles and rays go through Embree's
 //! BVH so throughput ratios come from one run on one machine.
 
-use embree3::{BufferUsage, BuildQuality, Device, Format, GeometryKind, IntersectContext, RayHit, Scene, SceneFlags};
+use embree3::{
+    BufferUsage, BuildQuality, Device, Format, GeometryKind, Hit4, Hit8, Hit16, INVALID_ID, IntersectContext, Ray4,
+    Ray8, Ray16, RayHit, RayHit4, RayHit8, RayHit16, Scene, SceneFlags, ValidMask, ValidMaskN,
+};
 
 use crate::{Ray, Triangle};
 
@@ -74,6 +77,8 @@ pub struct EmbreeTwoLevel {
     objects: Vec<Scene<'static>>,
     /// Per instance: its object and its geometry id in `top`.
     instances: Vec<(usize, u32)>,
+    /// Instance index by Embree geometry id (`u32::MAX` for none).
+    by_id: Vec<u32>,
     device: Device,
 }
 
@@ -128,12 +133,15 @@ impl EmbreeTwoLevel {
             inst.push((o, id));
         }
         top.commit();
-        Ok(Self {
+        let mut s = Self {
             top,
             objects: objs,
             instances: inst,
+            by_id: Vec::new(),
             device,
-        })
+        };
+        s.reindex();
+        Ok(s)
     }
 
     fn attach(device: &Device, top: &mut Scene<'static>, obj: &Scene<'static>, m: &[f32; 16]) -> Result<u32, String> {
@@ -165,6 +173,7 @@ impl EmbreeTwoLevel {
             self.top.commit_geometry(id);
         }
         self.top.commit();
+        self.reindex();
         Ok(())
     }
 
@@ -180,5 +189,187 @@ impl EmbreeTwoLevel {
         ));
         self.top.intersect(&mut ctx, &mut rh);
         rh.hit.is_valid().then_some(rh.ray.tfar)
+    }
+}
+
+/// A value at a 64-byte boundary (Embree's packet masks, see `fill_packet`).
+#[repr(C, align(64))]
+struct Aligned64<T>(T);
+
+/// Fills an Embree SoA ray packet from `rays` (lanes outside `lanes`, and
+/// rays that hit nothing by construction, are left inactive).
+macro_rules! fill_packet {
+    ($packet:ty, $n:literal, $rays:expr, $lanes:expr) => {{
+        let mut p = <$packet>::default();
+        // NOTE: Embree loads the mask as one SIMD register of the packet's
+        // width (64 bytes for 16 lanes); `ValidMaskN` is only 16-byte
+        // aligned, and a misaligned 16-lane mask hung rtcOccluded16 here.
+        let mut valid = Aligned64(ValidMaskN::<$n>::new([ValidMask::Invalid; $n]));
+        let mut bits = 0u32;
+        for (l, r) in $rays.iter().enumerate().take($n) {
+            p.org_x[l] = r.origin.x;
+            p.org_y[l] = r.origin.y;
+            p.org_z[l] = r.origin.z;
+            p.dir_x[l] = r.dir.x;
+            p.dir_y[l] = r.dir.y;
+            p.dir_z[l] = r.dir.z;
+            p.tnear[l] = r.t_min;
+            p.tfar[l] = r.t_max;
+            p.time[l] = 0.0;
+            p.mask[l] = u32::MAX;
+            p.id[l] = l as u32;
+            p.flags[l] = 0;
+            if $lanes & (1 << l) != 0 && r.is_valid() && r.t_min <= r.t_max {
+                valid.0.lanes_mut()[l] = ValidMask::Valid;
+                bits |= 1 << l;
+            } else {
+                // NOTE: an inactive lane still gets finite data and an
+                // empty interval: Embree's SIMD code computes on every lane.
+                p.org_x[l] = 0.0;
+                p.org_y[l] = 0.0;
+                p.org_z[l] = 0.0;
+                p.dir_x[l] = 1.0;
+                p.dir_y[l] = 1.0;
+                p.dir_z[l] = 1.0;
+                p.tnear[l] = 1.0;
+                p.tfar[l] = 0.0;
+            }
+        }
+        (p, valid, bits)
+    }};
+}
+
+/// The packet queries of one width (rtcIntersect4/8/16, rtcOccluded4/8/16).
+macro_rules! packet_queries {
+    ($closest:ident, $any:ident, $n:literal, $ray:ty, $hit:ty, $rayhit:ident, $isect:ident, $occl:ident) => {
+        fn $closest(&self, rays: &[Ray], lanes: u32, out: &mut [Option<(u32, crate::Hit)>]) {
+            let (ray, valid, bits) = fill_packet!($ray, $n, rays, lanes);
+            let mut rh = $rayhit {
+                ray,
+                hit: <$hit>::default(),
+            };
+            let mut ctx = IntersectContext::coherent();
+            self.top.$isect(&mut ctx, &mut rh, &valid.0);
+            for l in crate::lanes_of(bits) {
+                if rh.hit.geomID[l] != INVALID_ID {
+                    out[l] = Some((
+                        self.index_of(rh.hit.instID[0][l]),
+                        crate::Hit {
+                            t: rh.ray.tfar[l],
+                            prim: rh.hit.primID[l],
+                            b1: rh.hit.u[l],
+                            b2: rh.hit.v[l],
+                        },
+                    ));
+                }
+            }
+        }
+
+        fn $any(&self, rays: &[Ray], lanes: u32) -> u32 {
+            let (mut ray, valid, bits) = fill_packet!($ray, $n, rays, lanes);
+            // NOTE: with the coherent flag, rtcOccluded16 on some packets
+            // of secondary shadow rays never returned (Embree 3.13.5,
+            // AVX-512, instanced scenes); the incoherent flag answers them.
+            let mut ctx = IntersectContext::incoherent();
+            self.top.$occl(&mut ctx, &mut ray, &valid.0);
+            let mut hit = 0;
+            for l in crate::lanes_of(bits) {
+                if ray.tfar[l] == f32::NEG_INFINITY {
+                    hit |= 1 << l;
+                }
+            }
+            hit
+        }
+    };
+}
+
+impl EmbreeTwoLevel {
+    /// Index (in the `instances` order given to [`EmbreeTwoLevel::new`]) of
+    /// the instance with Embree geometry id `id`.
+    fn index_of(&self, id: u32) -> u32 {
+        self.by_id.get(id as usize).copied().unwrap_or(u32::MAX)
+    }
+
+    /// Rebuilds the map from Embree geometry ids to instance indices.
+    fn reindex(&mut self) {
+        let len = self.instances.iter().map(|i| i.1 as usize + 1).max().unwrap_or(0);
+        self.by_id = vec![u32::MAX; len];
+        for (k, i) in self.instances.iter().enumerate() {
+            self.by_id[i.1 as usize] = k as u32;
+        }
+    }
+
+    /// Closest hit with the index of the instance hit (rtcIntersect1).
+    #[must_use]
+    pub fn intersect_instance(&self, ray: &Ray) -> Option<(u32, crate::Hit)> {
+        if !ray.is_valid() || ray.t_min > ray.t_max {
+            return None;
+        }
+        let mut ctx = IntersectContext::incoherent();
+        let mut rh = RayHit::from(embree3::Ray::segment(
+            ray.origin.to_array(),
+            ray.dir.to_array(),
+            ray.t_min,
+            ray.t_max,
+        ));
+        self.top.intersect(&mut ctx, &mut rh);
+        rh.hit.is_valid().then(|| {
+            (
+                self.index_of(rh.hit.instID[0]),
+                crate::Hit {
+                    t: rh.ray.tfar,
+                    prim: rh.hit.primID,
+                    b1: rh.hit.u,
+                    b2: rh.hit.v,
+                },
+            )
+        })
+    }
+
+    /// `true` when anything is hit (rtcOccluded1).
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        if !ray.is_valid() || ray.t_min > ray.t_max {
+            return false;
+        }
+        let mut ctx = IntersectContext::incoherent();
+        let mut r = embree3::Ray::segment(ray.origin.to_array(), ray.dir.to_array(), ray.t_min, ray.t_max);
+        self.top.occluded(&mut ctx, &mut r)
+    }
+
+    packet_queries!(closest4, any4, 4, Ray4, Hit4, RayHit4, intersect4, occluded4);
+    packet_queries!(closest8, any8, 8, Ray8, Hit8, RayHit8, intersect8, occluded8);
+    packet_queries!(closest16, any16, 16, Ray16, Hit16, RayHit16, intersect16, occluded16);
+
+    /// Closest hits of the `lanes` of a packet through Embree's packet
+    /// kernels of the same width (rtcIntersect4/8/16; other widths go ray by
+    /// ray), with the index of the instance hit.
+    #[must_use]
+    pub fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<(u32, crate::Hit)>; N] {
+        let mut out = [None; N];
+        match N {
+            4 => self.closest4(rays, lanes, &mut out),
+            8 => self.closest8(rays, lanes, &mut out),
+            16 => self.closest16(rays, lanes, &mut out),
+            _ => {
+                for l in crate::lanes_of(lanes) {
+                    out[l] = self.intersect_instance(&rays[l]);
+                }
+            }
+        }
+        out
+    }
+
+    /// The lanes of a packet that hit anything (rtcOccluded4/8/16).
+    #[must_use]
+    pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
+        match N {
+            4 => self.any4(rays, lanes),
+            8 => self.any8(rays, lanes),
+            16 => self.any16(rays, lanes),
+            _ => crate::lanes_of(lanes)
+                .filter(|&l| self.occluded(&rays[l]))
+                .fold(0, |m, l| m | (1 << l)),
+        }
     }
 }

@@ -134,6 +134,14 @@ pub enum CoreError {
         /// The deleted object.
         object: ObjectId,
     },
+    /// A traversal backend could not be set up for a frame.
+    #[error("render: the {backend} backend failed: {reason}")]
+    Backend {
+        /// The backend's name.
+        backend: &'static str,
+        /// What it reported.
+        reason: String,
+    },
     /// The acceleration layer refused the input.
     #[error("{call}: {source}")]
     Accel {

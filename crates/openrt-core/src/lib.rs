@@ -73,6 +73,8 @@
 mod camera;
 mod commit;
 mod context;
+#[cfg(feature = "embree")]
+mod embree_backend;
 mod error;
 mod ids;
 mod instance;
@@ -85,10 +87,13 @@ mod render;
 mod scene;
 mod shade;
 mod texture;
+mod tracer;
 
 pub use camera::{Camera, CameraRays};
 pub use commit::{BuildRecord, CommitStats};
 pub use context::Context;
+#[cfg(feature = "embree")]
+pub use embree_backend::EmbreeScene;
 pub use error::CoreError;
 pub use ids::{InstanceId, MaterialId, ObjectId, TextureId};
 pub use instance::InstanceRecord;

@@ -8,10 +8,11 @@ use std::time::Instant;
 
 use crossbeam::channel::{Receiver, Sender, unbounded};
 use glam::Vec3;
-use openrt_accel::{PacketWidth, Ray};
+use openrt_accel::{PacketWidth, Ray, lanes_of};
 
 use crate::camera::CameraRays;
-use crate::shade::{Prepared, Shader};
+use crate::shade::Shader;
+use crate::tracer::Tracer;
 use crate::{Camera, CoreError, Environment, RayCounts, RenderMode, Scene};
 
 /// Tile edge in pixels.
@@ -28,6 +29,14 @@ pub enum Backend {
     Kd,
     /// Kd-trees through both levels, one ray at a time.
     KdSingle,
+    /// Embree 3, one ray at a time (rtcIntersect1/rtcOccluded1), on the
+    /// same rays and shading (feature `embree`).
+    #[cfg(feature = "embree")]
+    Embree,
+    /// Embree 3 packets of the renderer's width (rtcIntersect4/8/16,
+    /// rtcOccluded4/8/16), on the same packets (feature `embree`).
+    #[cfg(feature = "embree")]
+    EmbreePacket,
 }
 
 impl Backend {
@@ -37,17 +46,38 @@ impl Backend {
         match self {
             Self::Kd => "kd",
             Self::KdSingle => "kd-single",
+            #[cfg(feature = "embree")]
+            Self::Embree => "embree",
+            #[cfg(feature = "embree")]
+            Self::EmbreePacket => "embree-packet",
+        }
+    }
+
+    /// `true` for the backends that trace coherent rays in packets.
+    #[must_use]
+    pub fn packets(self) -> bool {
+        match self {
+            Self::Kd => true,
+            Self::KdSingle => false,
+            #[cfg(feature = "embree")]
+            Self::Embree => false,
+            #[cfg(feature = "embree")]
+            Self::EmbreePacket => true,
         }
     }
 
     /// Every backend of this build.
-    pub const ALL: [Self; 2] = [Self::Kd, Self::KdSingle];
+    #[cfg(not(feature = "embree"))]
+    pub const ALL: &[Self] = &[Self::Kd, Self::KdSingle];
+    /// Every backend of this build.
+    #[cfg(feature = "embree")]
+    pub const ALL: &[Self] = &[Self::Kd, Self::KdSingle, Self::Embree, Self::EmbreePacket];
 }
 
 impl std::str::FromStr for Backend {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL.into_iter().find(|b| b.name() == s).ok_or_else(|| {
+        Self::ALL.iter().copied().find(|b| b.name() == s).ok_or_else(|| {
             let names: Vec<_> = Self::ALL.iter().map(|b| b.name()).collect();
             format!("unknown backend '{s}' (this build has: {})", names.join(", "))
         })
@@ -120,6 +150,8 @@ struct FrameJob {
     settings: RenderSettings,
     backend: Backend,
     width: PacketWidth,
+    #[cfg(feature = "embree")]
+    embree: Arc<std::sync::RwLock<crate::embree_backend::EmbreeScene>>,
     tiles_x: u32,
     n_tiles: usize,
     next: AtomicUsize,
@@ -141,6 +173,9 @@ pub struct Renderer {
     workers: Vec<JoinHandle<()>>,
     backend: Backend,
     width: PacketWidth,
+    /// The Embree scene kept in step with the frames (Embree backends).
+    #[cfg(feature = "embree")]
+    embree: Arc<std::sync::RwLock<crate::embree_backend::EmbreeScene>>,
 }
 
 impl Renderer {
@@ -166,6 +201,8 @@ impl Renderer {
             workers,
             backend: Backend::default(),
             width: PacketWidth::detect(),
+            #[cfg(feature = "embree")]
+            embree: Arc::default(),
         }
     }
 
@@ -208,6 +245,14 @@ impl Renderer {
     ) -> Result<(Image, FrameStats), CoreError> {
         let cam = camera.rays(settings.width, settings.height)?;
         let start = Instant::now();
+        // The Embree peer's own commit counts as part of its frame.
+        #[cfg(feature = "embree")]
+        if matches!(self.backend, Backend::Embree | Backend::EmbreePacket) {
+            self.embree
+                .write()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .sync(scene)?;
+        }
         let tiles_x = settings.width.div_ceil(TILE);
         let tiles_y = settings.height.div_ceil(TILE);
         let n_tiles = (tiles_x * tiles_y) as usize;
@@ -219,6 +264,8 @@ impl Renderer {
             settings: *settings,
             backend: self.backend,
             width: self.width,
+            #[cfg(feature = "embree")]
+            embree: Arc::clone(&self.embree),
             tiles_x,
             n_tiles,
             next: AtomicUsize::new(0),
@@ -276,14 +323,26 @@ impl Drop for Renderer {
 }
 
 fn render_tiles(job: &FrameJob) {
+    match job.backend {
+        Backend::Kd | Backend::KdSingle => tiles(job, &*job.scene),
+        #[cfg(feature = "embree")]
+        Backend::Embree | Backend::EmbreePacket => {
+            let guard = job.embree.read().unwrap_or_else(std::sync::PoisonError::into_inner);
+            tiles(job, &*guard);
+        }
+    }
+}
+
+/// Takes tiles until none is left, tracing with `tracer`, then sends them.
+fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) {
     let mut shader = Shader {
         scene: &job.scene,
+        tracer,
         env: &job.env,
         mode: job.settings.mode,
         max_depth: job.settings.max_depth,
         counts: RayCounts::default(),
     };
-    let mut blocked = Vec::new();
     let mut done = Vec::new();
     loop {
         let index = job.next.fetch_add(1, Ordering::Relaxed);
@@ -301,8 +360,8 @@ fn render_tiles(job: &FrameJob) {
         );
         let tile = Tile { x0, y0, x1, y1 };
         let mut pixels = vec![Vec3::ZERO; ((x1 - x0) * (y1 - y0)) as usize];
-        match (job.backend, job.width) {
-            (Backend::KdSingle, _) => {
+        match (job.backend.packets(), job.width) {
+            (false, _) => {
                 for y in y0..y1 {
                     for x in x0..x1 {
                         shader.counts.primary += 1;
@@ -311,10 +370,10 @@ fn render_tiles(job: &FrameJob) {
                     }
                 }
             }
-            (Backend::Kd, PacketWidth::W4) => packet_tile::<4>(&mut shader, job, tile, &mut pixels, &mut blocked),
-            (Backend::Kd, PacketWidth::W8) => packet_tile::<8>(&mut shader, job, tile, &mut pixels, &mut blocked),
-            (Backend::Kd, PacketWidth::W16) => {
-                packet_tile::<16>(&mut shader, job, tile, &mut pixels, &mut blocked);
+            (true, PacketWidth::W4) => packet_tile::<4, T>(&mut shader, job, tile, &mut pixels),
+            (true, PacketWidth::W8) => packet_tile::<8, T>(&mut shader, job, tile, &mut pixels),
+            (true, PacketWidth::W16) => {
+                packet_tile::<16, T>(&mut shader, job, tile, &mut pixels);
             }
         }
         for p in &mut pixels {
@@ -355,20 +414,11 @@ const fn block(n: usize) -> (u32, u32) {
     }
 }
 
-/// Renders a tile in packets of `N` primary rays (blocks of pixels), then
-/// per light the packet's shadow rays; reflection and refraction rays go
-/// one by one. Every pixel gets the bytes the single-ray path gives it: the
-/// packet queries answer each lane as the single-ray queries do, and the
-/// shading is the same code ([`Shader::prepare`] and [`Shader::finish`]).
-fn packet_tile<const N: usize>(
-    shader: &mut Shader<'_>,
-    job: &FrameJob,
-    tile: Tile,
-    pixels: &mut [Vec3],
-    blocked: &mut Vec<u32>,
-) {
-    let scene = shader.scene;
-    let lights = &shader.env.lights;
+/// Renders a tile in packets of `N` primary rays (blocks of pixels) through
+/// [`Shader::trace_packet`]. Every pixel gets the bytes the single-ray path
+/// gives it: the packet queries answer each lane as the single-ray queries
+/// do, and the shading is the same code.
+fn packet_tile<const N: usize, T: Tracer>(shader: &mut Shader<'_, T>, job: &FrameJob, tile: Tile, pixels: &mut [Vec3]) {
     let (bw, bh) = block(N);
     for by in (tile.y0..tile.y1).step_by(bh as usize) {
         for bx in (tile.x0..tile.x1).step_by(bw as usize) {
@@ -383,41 +433,9 @@ fn packet_tile<const N: usize>(
             }
             let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray(at[l].0, at[l].1));
             shader.counts.primary += u64::from(lanes.count_ones());
-            let hits = scene.intersect_packet(&rays, lanes);
-            let preps: [Option<Prepared>; N] = std::array::from_fn(|l| {
-                if lanes & (1 << l) == 0 {
-                    return None;
-                }
-                shader.prepare(&rays[l], hits[l])
-            });
-            blocked.clear();
-            if shader.mode == RenderMode::Whitted {
-                for light in lights {
-                    let mut shadow = rays;
-                    let mut mask = 0u32;
-                    for (l, p) in preps.iter().enumerate() {
-                        if let Some(r) = p.as_ref().and_then(|p| shader.shadow_ray(p, light)) {
-                            shadow[l] = r;
-                            mask |= 1 << l;
-                        }
-                    }
-                    shader.counts.shadow += u64::from(mask.count_ones());
-                    blocked.push(if mask == 0 {
-                        0
-                    } else {
-                        scene.occluded_packet(&shadow, mask)
-                    });
-                }
-            }
-            for (l, p) in preps.iter().enumerate() {
-                if lanes & (1 << l) == 0 {
-                    continue;
-                }
-                let c = match p {
-                    Some(p) => shader.finish(p, |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0), 0),
-                    None => shader.env.background,
-                };
-                pixels[tile.index(at[l].0, at[l].1)] = c;
+            let colors = shader.trace_packet(&rays, lanes, 0);
+            for l in lanes_of(lanes) {
+                pixels[tile.index(at[l].0, at[l].1)] = colors[l];
             }
         }
     }

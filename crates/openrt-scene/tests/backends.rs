@@ -225,7 +225,7 @@ fn kd_and_kd_single_render_the_same_bytes() {
 
 #[test]
 fn backends_parse_from_their_names() {
-    for b in Backend::ALL {
+    for &b in Backend::ALL {
         assert_eq!(b.name().parse::<Backend>(), Ok(b));
     }
     let e = "embree-x".parse::<Backend>().unwrap_err();

@@ -1,0 +1,41 @@
+//! What shading asks of a traversal backend: closest and any hit, for single
+//! rays and for packets. The kd-trees of a committed [`Scene`] answer it,
+//! and so does the Embree peer (feature `embree`).
+
+use openrt_accel::Ray;
+
+use crate::{Scene, SceneHit};
+
+/// A traversal backend for the shader.
+pub(crate) trait Tracer: Sync {
+    /// Closest hit of `ray`.
+    fn intersect(&self, ray: &Ray) -> Option<SceneHit>;
+    /// `true` when anything blocks `ray`.
+    fn occluded(&self, ray: &Ray) -> bool;
+    /// Closest hits of the `lanes` of a packet.
+    fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N];
+    /// The lanes of a packet that are blocked.
+    fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32;
+}
+
+impl Tracer for Scene {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
+        Scene::intersect(self, ray)
+    }
+
+    #[inline]
+    fn occluded(&self, ray: &Ray) -> bool {
+        Scene::occluded(self, ray)
+    }
+
+    #[inline]
+    fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N] {
+        Scene::intersect_packet(self, rays, lanes)
+    }
+
+    #[inline]
+    fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
+        Scene::occluded_packet(self, rays, lanes)
+    }
+}
