@@ -149,6 +149,28 @@ impl Aabb {
         }
     }
 
+    /// [`Aabb::clip`] for the `lanes` of a packet, lane `l` over
+    /// `(t_min, t_max[l])`: each lane's entry and exit, and the lanes whose
+    /// ray meets the box (the others hold zeros).
+    #[must_use]
+    pub fn clip_lanes<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        t_max: &[f32; N],
+    ) -> ([f32; N], [f32; N], u32) {
+        let mut t0 = [0.0f32; N];
+        let mut t1 = [0.0f32; N];
+        let mut live = 0u32;
+        for l in crate::lanes_of(lanes) {
+            if let Some((a, b)) = self.clip(&rays[l].with_interval(rays[l].t_min, t_max[l])) {
+                (t0[l], t1[l]) = (a, b);
+                live |= 1 << l;
+            }
+        }
+        (t0, t1, live)
+    }
+
     /// Clips `ray` to the closed box: returns the parameter interval inside it
     /// (intersected with the ray's own interval), or `None`.
     ///

@@ -43,20 +43,7 @@ impl EmbreeMesh {
     /// Closest hit with Embree's barycentrics.
     #[must_use]
     pub fn intersect_hit(&self, ray: &Ray) -> Option<crate::Hit> {
-        let mut ctx = IntersectContext::incoherent();
-        let mut rh = RayHit::from(embree3::Ray::segment(
-            ray.origin.to_array(),
-            ray.dir.to_array(),
-            ray.t_min,
-            ray.t_max,
-        ));
-        self.scene.intersect(&mut ctx, &mut rh);
-        rh.hit.is_valid().then_some(crate::Hit {
-            t: rh.ray.tfar,
-            prim: rh.hit.primID,
-            b1: rh.hit.u,
-            b2: rh.hit.v,
-        })
+        closest1(&self.scene, ray).map(|(_, h)| h)
     }
 
     /// Any hit.
@@ -192,6 +179,28 @@ impl EmbreeTwoLevel {
     }
 }
 
+/// The closest hit of one ray (rtcIntersect1) with the Embree id of the
+/// instance hit (`INVALID_ID` in a scene without instances).
+fn closest1(scene: &Scene<'static>, ray: &Ray) -> Option<(u32, crate::Hit)> {
+    let mut ctx = IntersectContext::incoherent();
+    let mut rh = RayHit::from(embree3::Ray::segment(
+        ray.origin.to_array(),
+        ray.dir.to_array(),
+        ray.t_min,
+        ray.t_max,
+    ));
+    scene.intersect(&mut ctx, &mut rh);
+    rh.hit.is_valid().then_some((
+        rh.hit.instID[0],
+        crate::Hit {
+            t: rh.ray.tfar,
+            prim: rh.hit.primID,
+            b1: rh.hit.u,
+            b2: rh.hit.v,
+        },
+    ))
+}
+
 /// A value at a 64-byte boundary (Embree's packet masks, see `fill_packet`).
 #[repr(C, align(64))]
 struct Aligned64<T>(T);
@@ -305,25 +314,7 @@ impl EmbreeTwoLevel {
         if !ray.is_valid() || ray.t_min > ray.t_max {
             return None;
         }
-        let mut ctx = IntersectContext::incoherent();
-        let mut rh = RayHit::from(embree3::Ray::segment(
-            ray.origin.to_array(),
-            ray.dir.to_array(),
-            ray.t_min,
-            ray.t_max,
-        ));
-        self.top.intersect(&mut ctx, &mut rh);
-        rh.hit.is_valid().then(|| {
-            (
-                self.index_of(rh.hit.instID[0]),
-                crate::Hit {
-                    t: rh.ray.tfar,
-                    prim: rh.hit.primID,
-                    b1: rh.hit.u,
-                    b2: rh.hit.v,
-                },
-            )
-        })
+        closest1(&self.top, ray).map(|(inst, h)| (self.index_of(inst), h))
     }
 
     /// `true` when anything is hit (rtcOccluded1).

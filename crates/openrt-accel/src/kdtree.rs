@@ -272,15 +272,7 @@ impl KdTree {
         closest: &mut [f32; N],
         hits: &mut [Option<Hit>; N],
     ) -> u32 {
-        let mut t0 = [0.0f32; N];
-        let mut t1 = [0.0f32; N];
-        let mut live = 0u32;
-        for l in lanes_of(lanes) {
-            if let Some((a, b)) = self.bounds.clip(&rays[l].with_interval(rays[l].t_min, closest[l])) {
-                (t0[l], t1[l]) = (a, b);
-                live |= 1 << l;
-            }
-        }
+        let (t0, t1, live) = self.bounds.clip_lanes(rays, lanes, closest);
         if live == 0 {
             return 0;
         }
@@ -323,16 +315,8 @@ impl KdTree {
     /// mask of the lanes whose ray hits something in its interval.
     #[must_use]
     pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
-        let mut t0 = [0.0f32; N];
-        let mut t1 = [0.0f32; N];
-        let mut closest = [0.0f32; N];
-        let mut live = 0u32;
-        for l in lanes_of(lanes) {
-            if let Some((a, b)) = self.bounds.clip(&rays[l]) {
-                (t0[l], t1[l], closest[l]) = (a, b, rays[l].t_max);
-                live |= 1 << l;
-            }
-        }
+        let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
+        let (t0, t1, live) = self.bounds.clip_lanes(rays, lanes, &closest);
         if live == 0 {
             return 0;
         }

@@ -229,17 +229,8 @@ impl Scene {
     where
         F: FnMut(u32, &InstanceRecord, u32, &mut [f32; N]) -> u32,
     {
-        let bounds = self.bsp.bounds();
-        let mut t0 = [0.0f32; N];
-        let mut t1 = [0.0f32; N];
-        let mut closest = [0.0f32; N];
-        let mut live = 0u32;
-        for l in lanes_of(lanes) {
-            if let Some((a, b)) = bounds.clip(&rays[l]) {
-                (t0[l], t1[l], closest[l]) = (a, b, rays[l].t_max);
-                live |= 1 << l;
-            }
-        }
+        let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
+        let (t0, t1, live) = self.bsp.bounds().clip_lanes(rays, lanes, &closest);
         if live == 0 {
             return 0;
         }

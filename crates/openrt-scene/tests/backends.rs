@@ -21,30 +21,14 @@ use openrt_scene::ScenePlayer;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
+mod bart_dir;
+
+use bart_dir::bart;
+
 const WIDTHS: [PacketWidth; 3] = [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16];
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn bart() -> Option<PathBuf> {
-    let dir = std::env::var_os("OPENRT_BART_DIR").map_or_else(
-        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bart"),
-        PathBuf::from,
-    );
-    if dir.join("kitchen/kitchen.aff").is_file() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "BART data missing at {} (set OPENRT_BART_DIR)",
-        dir.display()
-    );
-    println!(
-        "skipped: BART data not found at {} (set OPENRT_BART_DIR)",
-        dir.display()
-    );
-    None
 }
 
 fn bits(h: Option<SceneHit>) -> Option<(u32, u32, u32, u32, u32)> {

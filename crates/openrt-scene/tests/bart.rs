@@ -5,7 +5,10 @@
 //! from the repository root). Without it these tests fail when `CI` is set
 //! and are skipped with a printed reason otherwise.
 
+mod bart_dir;
 mod common;
+
+use bart_dir::bart;
 
 use std::path::{Path, PathBuf};
 
@@ -14,26 +17,6 @@ use openrt_core::{RenderMode, RenderSettings, Renderer};
 use openrt_scene::SceneError;
 use openrt_scene::aff::{AffPlayer, parse_aff};
 use sha2::{Digest, Sha256};
-
-fn bart() -> Option<PathBuf> {
-    let dir = std::env::var_os("OPENRT_BART_DIR").map_or_else(
-        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bart"),
-        PathBuf::from,
-    );
-    if dir.join("kitchen/kitchen.aff").is_file() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "BART data missing at {} (set OPENRT_BART_DIR)",
-        dir.display()
-    );
-    println!(
-        "skipped: BART data not found at {} (set OPENRT_BART_DIR)",
-        dir.display()
-    );
-    None
-}
 
 #[test]
 fn the_data_matches_its_checksums() {
