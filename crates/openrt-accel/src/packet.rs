@@ -59,13 +59,14 @@ impl PacketWidth {
     #[must_use]
     pub fn detect() -> Self {
         static WIDTH: OnceLock<PacketWidth> = OnceLock::new();
-        *WIDTH.get_or_init(|| {
-            std::env::var(LANES_ENV)
-                .ok()
-                .and_then(|v| v.trim().parse().ok())
-                .and_then(Self::from_lanes)
-                .unwrap_or_else(Self::cpu)
-        })
+        *WIDTH.get_or_init(|| Self::from_env_value(std::env::var(LANES_ENV).ok().as_deref()).unwrap_or_else(Self::cpu))
+    }
+
+    /// The width a value of [`LANES_ENV`] asks for: `4`, `8` or `16`
+    /// (surrounding blanks allowed); `None` for no value or any other.
+    #[must_use]
+    pub fn from_env_value(value: Option<&str>) -> Option<Self> {
+        value.and_then(|v| v.trim().parse().ok()).and_then(Self::from_lanes)
     }
 
     /// The widest width the CPU's vector registers hold.
@@ -137,6 +138,11 @@ mod tests {
             assert!(w.lanes() <= MAX_LANES);
         }
         assert_eq!(PacketWidth::from_lanes(5), None);
+        assert_eq!(PacketWidth::from_env_value(Some(" 8 ")), Some(PacketWidth::W8));
+        assert_eq!(PacketWidth::from_env_value(Some("4")), Some(PacketWidth::W4));
+        for bad in [None, Some(""), Some("12"), Some("avx"), Some("-4")] {
+            assert_eq!(PacketWidth::from_env_value(bad), None, "{bad:?}");
+        }
         assert!(PacketWidth::detect().lanes() >= 4);
     }
 
