@@ -225,17 +225,13 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), Stri
     let env = player.env();
     let cam = player.camera(t).rays(o.width, o.height).map_err(|e| e.to_string())?;
     let lanes = PacketWidth::detect().lanes();
-    let (bw, bh) = match lanes {
-        4 => (2, 2),
-        8 => (4, 2),
-        _ => (4, 4),
-    };
+    let (bw, bh) = openrt_core::packet_block(lanes);
     // Pixel blocks in the renderer's order, each padded to full lanes.
     let mut primary = Vec::new();
-    for by in (0..o.height).step_by(bh) {
-        for bx in (0..o.width).step_by(bw) {
+    for by in (0..o.height).step_by(bh as usize) {
+        for bx in (0..o.width).step_by(bw as usize) {
             for l in 0..lanes as u32 {
-                let (x, y) = (bx + l % bw as u32, by + l / bw as u32);
+                let (x, y) = (bx + l % bw, by + l / bw);
                 primary.push(cam.ray(x.min(o.width - 1), y.min(o.height - 1)));
             }
         }

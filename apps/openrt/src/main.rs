@@ -54,7 +54,8 @@ struct Quality {
     /// Render threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// Traversal backend: `kd` (ray packets) or `kd-single` (one ray at a time).
+    /// Traversal backend: `kd` (ray packets), `kd-single` (one ray at a time); builds with
+    /// `--features embree` add `embree` and `embree-packet`.
     #[arg(long, default_value = "kd")]
     backend: Backend,
 }

@@ -31,6 +31,11 @@ fn dense<const N: usize>(active: u32) -> bool {
 /// See [`dense`].
 const DENSE_SHARE: usize = 4;
 
+/// Each lane's own pre-test constants.
+fn block_rays<const N: usize>(rays: &[Ray; N]) -> [BlockRay; N] {
+    std::array::from_fn(|l| BlockRay::new(&rays[l]))
+}
+
 /// Which builder made a tree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum BuilderKind {
@@ -282,7 +287,8 @@ impl KdTree {
         // few lanes reach the leaf: then each lane pre-tests four
         // triangles at a time on its own (`dense`).
         let pbr = PacketBlockRay::new(rays, live);
-        let brs: [BlockRay; N] = std::array::from_fn(|l| BlockRay::new(&rays[l]));
+        // PERF: made on the first sparse leaf only (dense leaves need none).
+        let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                 for_each_candidate_packet(pbr, active, leaf, &self.prim_ids, &self.blocks, |m, prim, tri| {
@@ -297,6 +303,7 @@ impl KdTree {
                 });
                 return 0;
             }
+            let brs = brs.get_or_insert_with(|| block_rays(rays));
             for l in lanes_of(active) {
                 if let Some((prim, (t, b1, b2))) =
                     leaf_closest(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l])
@@ -321,7 +328,8 @@ impl KdTree {
             return 0;
         }
         let pbr = PacketBlockRay::new(rays, live);
-        let brs: [BlockRay; N] = std::array::from_fn(|l| BlockRay::new(&rays[l]));
+        // PERF: made on the first sparse leaf only (dense leaves need none).
+        let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(
             &self.nodes,
             rays,
@@ -341,6 +349,7 @@ impl KdTree {
                         hit
                     });
                 }
+                let brs = brs.get_or_insert_with(|| block_rays(rays));
                 let mut hit = 0u32;
                 for l in lanes_of(active) {
                     if leaf_any(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l]) {

@@ -25,7 +25,7 @@ const ENLARGE: f32 = 2.0 * gamma(3);
 /// widening), and the mirror for lower bounds: every cell that comparing
 /// split distances widened by `ENLARGE` on both sides would visit is visited
 /// (tested below).
-pub(crate) const BOUND: f32 = 2.0 * ENLARGE + 2.0 * f32::EPSILON;
+const BOUND: f32 = 2.0 * ENLARGE + 2.0 * f32::EPSILON;
 
 /// `t` widened upwards by [`BOUND`] relative.
 #[inline]

@@ -19,7 +19,7 @@
 
 use crate::kdnode::{KdNode, MAX_DEPTH};
 use crate::packet::{lanes_of, sign_groups};
-use crate::traverse::{BOUND, traverse};
+use crate::traverse::{traverse, widen_down, widen_up};
 use crate::{MAX_LANES, Ray};
 
 /// A deferred far child with the lanes that visit it and their intervals.
@@ -145,8 +145,8 @@ where
             inv[a][l] = i[a];
         }
     }
-    let mut t_min: [f32; N] = std::array::from_fn(|l| t0[l] - t0[l].abs() * BOUND);
-    let mut t_max: [f32; N] = std::array::from_fn(|l| t1[l] + t1[l].abs() * BOUND);
+    let mut t_min: [f32; N] = std::array::from_fn(|l| widen_down(t0[l]));
+    let mut t_max: [f32; N] = std::array::from_fn(|l| widen_up(t1[l]));
     // PERF: the stack is not zeroed: entries are written before they are read.
     let mut stack = [std::mem::MaybeUninit::<Entry<N>>::uninit(); MAX_DEPTH];
     let mut sp = 0usize;
@@ -184,24 +184,25 @@ where
             let beyond = bits::<N>(|l| t_split[l] > t_max[l]);
             let go_near = if near_empty { 0 } else { active & !before };
             let go_far = if far_empty { 0 } else { active & !beyond };
+            // Each lane's far interval starts at its widened split distance
+            // (the scalar walk's `lo`), whether the far cell waits or is next.
+            let far_min: [f32; N] = std::array::from_fn(|l| {
+                let lo = widen_down(t_split[l]);
+                if lo > t_min[l] { lo } else { t_min[l] }
+            });
             if go_near != 0 {
                 if go_far != 0 {
-                    let mut e = Entry {
+                    stack[sp].write(Entry {
                         node: far,
                         mask: go_far,
                         unchecked: go_far & !go_near,
-                        t_min,
+                        t_min: far_min,
                         t_max,
-                    };
-                    for l in 0..N {
-                        let lo = t_split[l] - t_split[l].abs() * BOUND;
-                        e.t_min[l] = if lo > t_min[l] { lo } else { t_min[l] };
-                    }
-                    stack[sp].write(e);
+                    });
                     sp += 1;
                 }
                 for l in 0..N {
-                    let hi = t_split[l] + t_split[l].abs() * BOUND;
+                    let hi = widen_up(t_split[l]);
                     t_max[l] = if hi < t_max[l] { hi } else { t_max[l] };
                 }
                 active = go_near;
@@ -209,10 +210,7 @@ where
                 continue 'walk;
             }
             if go_far != 0 {
-                for l in 0..N {
-                    let lo = t_split[l] - t_split[l].abs() * BOUND;
-                    t_min[l] = if lo > t_min[l] { lo } else { t_min[l] };
-                }
+                t_min = far_min;
                 active = go_far;
                 node = far;
                 continue 'walk;

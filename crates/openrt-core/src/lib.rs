@@ -102,7 +102,7 @@ pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{ObjectGeometry, ObjectMesh, ShadingData};
 pub use primitive::PrimitiveKind;
-pub use render::{Backend, FrameStats, Image, RenderSettings, Renderer, TILE};
+pub use render::{Backend, FrameStats, Image, RenderSettings, Renderer, TILE, packet_block};
 pub use scene::{Scene, SceneHit, Surface};
 pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, offset_ray_origin};
 pub use texture::Texture;

@@ -405,8 +405,10 @@ impl Tile {
     }
 }
 
-/// Width and height of the pixel block that fills an `N`-lane packet.
-const fn block(n: usize) -> (u32, u32) {
+/// Width and height of the pixel block that fills a packet of `n` lanes
+/// (4x4 for 16, 4x2 for 8, 2x2 for 4): the renderer's primary packets.
+#[must_use]
+pub const fn packet_block(n: usize) -> (u32, u32) {
     match n {
         4 => (2, 2),
         8 => (4, 2),
@@ -419,7 +421,7 @@ const fn block(n: usize) -> (u32, u32) {
 /// gives it: the packet queries answer each lane as the single-ray queries
 /// do, and the shading is the same code.
 fn packet_tile<const N: usize, T: Tracer>(shader: &mut Shader<'_, T>, job: &FrameJob, tile: Tile, pixels: &mut [Vec3]) {
-    let (bw, bh) = block(N);
+    let (bw, bh) = packet_block(N);
     for by in (tile.y0..tile.y1).step_by(bh as usize) {
         for bx in (tile.x0..tile.x1).step_by(bw as usize) {
             let mut at = [(0u32, 0u32); N];
