@@ -118,14 +118,23 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                     backend,
                 } => {
                     let Some(p) = player.as_mut() else { continue };
-                    if renderer.as_ref().is_none_or(|r| r.threads() != threads) {
-                        renderer = Some(Renderer::new(threads));
-                    }
-                    let r = renderer.as_mut().expect("created above");
-                    r.set_backend(backend);
-                    match render(p, r, time, camera, &settings) {
-                        Ok(f) => Reply::Frame(Box::new(f)),
-                        Err(e) => Reply::Error(e),
+                    let pool = if renderer.as_ref().is_some_and(|r| r.threads() == threads) {
+                        Ok(())
+                    } else {
+                        // The old pool goes first, so its threads are not counted twice.
+                        renderer = None;
+                        Renderer::new(threads).map(|r| renderer = Some(r)).map_err(|e| e.to_string())
+                    };
+                    match (pool, renderer.as_mut()) {
+                        (Err(e), _) => Reply::Error(e),
+                        (Ok(()), None) => Reply::Error("render: no render pool".into()),
+                        (Ok(()), Some(r)) => {
+                            r.set_backend(backend);
+                            match render(p, r, time, camera, &settings) {
+                                Ok(f) => Reply::Frame(Box::new(f)),
+                                Err(e) => Reply::Error(e),
+                            }
+                        }
                     }
                 }
             };

@@ -120,12 +120,12 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
         .iter()
         .flat_map(|&t| {
             Backend::ALL.iter().map(move |&b| {
-                let mut r = Renderer::new(t);
+                let mut r = Renderer::new(t).map_err(|e| e.to_string())?;
                 r.set_backend(b);
-                (t, r)
+                Ok((t, r))
             })
         })
-        .collect();
+        .collect::<Result<_, String>>()?;
     // Warm-up: a peer backend builds its own scene on its first frame,
     // as the kd trees were built by the warm-up commit above.
     {
@@ -240,8 +240,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), Stri
     for block in primary.chunks(lanes) {
         for light in &env.lights {
             for r in block {
-                let out = scene.intersect(r).map_or(r.origin, |h| {
-                    let s = scene.surface(r, &h);
+                let out = scene.intersect(r).and_then(|h| scene.surface(r, &h).ok()).map_or(r.origin, |s| {
                     let n = if s.geometric_normal.dot(r.dir) > 0.0 {
                         -s.geometric_normal
                     } else {
@@ -400,7 +399,7 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
     let scene = player.ctx().scene();
     let (cam, env) = (player.camera(t), player.env());
     let threads = *o.threads.iter().max().unwrap_or(&1);
-    let r = Renderer::new(threads);
+    let r = Renderer::new(threads).map_err(|e| e.to_string())?;
     let full = settings(o, RenderMode::Whitted, 8);
     let (reference, _) = r.render(&scene, &env, &cam, &full).map_err(|e| e.to_string())?;
     let mut q = Vec::new();
@@ -489,7 +488,7 @@ fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(), String
         player.ctx_mut().set_redefinition_builder(b);
         player.ctx_mut().set_promote_after(None);
         player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
-        let r = Renderer::new(*o.threads.iter().max().unwrap_or(&1));
+        let r = Renderer::new(*o.threads.iter().max().unwrap_or(&1)).map_err(|e| e.to_string())?;
         let (mut c, mut rt) = (Vec::new(), Vec::new());
         for k in 0..o.frames.max(3) {
             let t = player.time_of(((k + 1) * player.frames() as usize / (o.frames.max(3) + 1)) as u32);

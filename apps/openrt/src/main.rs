@@ -144,16 +144,15 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
 }
 
 /// The render pool for the quality options: thread count and backend.
-fn renderer(q: &Quality) -> Renderer {
-    let mut r = Renderer::new(threads(q));
+fn renderer(q: &Quality) -> Result<Renderer, String> {
+    let mut r = Renderer::new(threads(q)).map_err(|e| format!("--threads: {e}"))?;
     r.set_backend(q.backend);
-    r
+    Ok(r)
 }
 
 fn threads(q: &Quality) -> usize {
     q.threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
-        .max(1)
 }
 
 /// Parses `A..B` or `A..=B` into a half-open range clamped to `n` frames.
@@ -171,7 +170,10 @@ fn frame_range(spec: Option<&str>, n: u32) -> Result<std::ops::Range<u32>, Strin
     let b: u32 = if b.is_empty() {
         n
     } else {
-        b.parse::<u32>().map_err(|_| bad())? + u32::from(inclusive)
+        b.parse::<u32>()
+            .ok()
+            .and_then(|b| b.checked_add(u32::from(inclusive)))
+            .ok_or_else(bad)?
     };
     if a > b {
         return Err(bad());
@@ -203,7 +205,7 @@ fn run(cli: Cli) -> Result<(), String> {
             };
             let commit = player.set_time(t).map_err(|e| e.to_string())?;
             let s = settings(&player, &quality);
-            let renderer = renderer(&quality);
+            let renderer = renderer(&quality)?;
             let (img, stats) = renderer
                 .render(&player.ctx().scene(), &player.env(), &player.camera(t), &s)
                 .map_err(|e| e.to_string())?;
@@ -280,7 +282,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 None => Box::new(std::io::stdout()),
             };
             let s = settings(&player, &quality);
-            let renderer = renderer(&quality);
+            let renderer = renderer(&quality)?;
             let bar = ProgressBar::new(u64::from(range.end - range.start));
             bar.set_style(
                 ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta} {msg}")
@@ -338,7 +340,7 @@ mod tests {
         assert_eq!(frame_range(Some("2..=5"), 10).unwrap(), 2..6);
         assert_eq!(frame_range(Some("..3"), 10).unwrap(), 0..3);
         assert_eq!(frame_range(Some("7.."), 10).unwrap(), 7..10);
-        for bad in ["5..2", "a..b", "3", "0..11"] {
+        for bad in ["5..2", "a..b", "3", "0..11", "0..=4294967295", "-1..2", "0..99999999999"] {
             assert!(frame_range(Some(bad), 10).is_err(), "{bad}");
         }
     }

@@ -68,7 +68,7 @@ impl<'a> BruteForce<'a> {
     pub fn closest(&self, ray: &Ray) -> Option<OracleHit> {
         self.candidates(ray)
             .into_iter()
-            .filter(|h| h.min_bary >= 0.0 && h.t > f64::from(ray.t_min) && h.t < f64::from(ray.t_max))
+            .filter(|h| h.min_bary >= 0.0 && h.t > f64::from(ray.t_min).max(0.0) && h.t < f64::from(ray.t_max))
             .min_by(|a, b| a.t.total_cmp(&b.t))
     }
 
@@ -80,7 +80,8 @@ impl<'a> BruteForce<'a> {
     /// - a miss is only allowed when the oracle has no solid hit.
     pub fn check_closest(&self, ray: &Ray, got: Option<Hit>) -> Result<(), String> {
         let cands = self.candidates(ray);
-        let (lo, hi) = (f64::from(ray.t_min), f64::from(ray.t_max));
+        // Hits lie at t > 0 whatever t_min (the contract of `Ray`).
+        let (lo, hi) = (f64::from(ray.t_min).max(0.0), f64::from(ray.t_max));
         let solid = |h: &&OracleHit| h.min_bary >= h.bary_tol && h.t > lo + h.t_tol && h.t < hi - h.t_tol;
         match got {
             None => match cands.iter().filter(solid).min_by(|a, b| a.t.total_cmp(&b.t)) {
@@ -125,7 +126,8 @@ impl<'a> BruteForce<'a> {
     /// interval, `false` needs no solid hit.
     pub fn check_occluded(&self, ray: &Ray, got: bool) -> Result<(), String> {
         let cands = self.candidates(ray);
-        let (lo, hi) = (f64::from(ray.t_min), f64::from(ray.t_max));
+        // Hits lie at t > 0 whatever t_min (the contract of `Ray`).
+        let (lo, hi) = (f64::from(ray.t_min).max(0.0), f64::from(ray.t_max));
         if got {
             let possible = cands
                 .iter()

@@ -4,6 +4,13 @@ use glam::Vec3;
 
 /// A ray `origin + t * dir` restricted to the open interval `(t_min, t_max)`.
 ///
+/// **Hits lie in front of the origin.** Every query reports hits at `t > 0`
+/// only, so the interval searched is `(max(t_min, 0), t_max)`: a negative
+/// `t_min` is allowed and means the same as `0`. (The watertight test's
+/// conservative `t > 0` check rejects hits at or behind the origin; the f64
+/// oracle follows the same rule.) A NaN bound, a zero or non-finite direction,
+/// or a non-finite origin gives a ray that hits nothing.
+///
 /// The constructor precomputes everything that does not depend on the
 /// primitive being tested:
 /// - `inv_dir`, a reciprocal direction that is *safe* for `0.0` and `-0.0`
@@ -23,7 +30,7 @@ pub struct Ray {
     pub origin: Vec3,
     /// Ray direction (any non-zero length).
     pub dir: Vec3,
-    /// Hits must satisfy `t > t_min`.
+    /// Hits must satisfy `t > t_min` (and `t > 0`: see the type docs).
     pub t_min: f32,
     /// Hits must satisfy `t < t_max`.
     pub t_max: f32,

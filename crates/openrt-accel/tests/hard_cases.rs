@@ -361,3 +361,34 @@ fn box_clip_and_tree_bounds_agree_on_flat_scenes() {
     let h = t.intersect(&Ray::infinite(Vec3::new(1.5, 1.5, 5.0), -Vec3::Z)).unwrap();
     assert!((h.t - 5.0).abs() < 1e-6);
 }
+
+/// The `Ray` contract: hits lie at `t > 0` whatever `t_min`, so a negative
+/// `t_min` answers exactly as `0` does, for closest and any hit, on the
+/// kd-tree, the kernel and the oracle alike.
+#[test]
+fn negative_t_min_reports_no_hit_at_or_behind_the_origin() {
+    let mut rng = SmallRng::seed_from_u64(0x7_0000);
+    let tris = meshgen::random_soup(400, 7, Aabb::new(Vec3::splat(-1.0), Vec3::ONE), 0.3);
+    let t = tree(&tris);
+    let oracle = BruteForce::new(&tris);
+    let mut behind = 0;
+    for _ in 0..2000 {
+        // Origins inside the soup, so that triangles lie behind them too.
+        let o = jitter(&mut rng, 0.8);
+        let d = jitter(&mut rng, 1.0);
+        let zero = Ray::new(o, d, 0.0, f32::INFINITY);
+        for t_min in [-0.0, -1e-30, -0.5, -1e30, f32::NEG_INFINITY] {
+            let neg = Ray::new(o, d, t_min, f32::INFINITY);
+            let hit = t.intersect(&neg);
+            assert_eq!(hit, t.intersect(&zero), "t_min {t_min}");
+            assert_eq!(t.occluded(&neg), t.occluded(&zero), "t_min {t_min}");
+            if let Some(h) = hit {
+                assert!(h.t > 0.0, "hit at t = {} with t_min {t_min}", h.t);
+            }
+            oracle.check_closest(&neg, hit).expect("oracle agrees");
+        }
+        // A ray that has triangles behind its origin.
+        behind += usize::from(kernel_hits(&tris, &Ray::new(o, -d, 0.0, f32::INFINITY)) > 0);
+    }
+    assert!(behind > 500, "the sweep must put triangles behind the origins ({behind})");
+}

@@ -38,6 +38,10 @@ pub struct CommitStats {
     pub promotions_started: Vec<ObjectId>,
     /// Objects whose SAH tree from the background replaced the fast tree.
     pub promotions_swapped: Vec<ObjectId>,
+    /// Objects whose background SAH build failed, with the reason; the fast
+    /// tree stays, and the build is not tried again until the object is
+    /// redefined.
+    pub promotions_failed: Vec<(ObjectId, String)>,
     /// Top-level BSP rebuild time in milliseconds (or the time to find that
     /// no rebuild was needed).
     pub toplevel_ms: f64,
@@ -69,6 +73,21 @@ impl CommitStats {
     pub fn build_count(&self, builder: BuilderKind) -> usize {
         self.builds.iter().filter(|b| b.builder == builder).count()
     }
+}
+
+/// Builds an object tree; `fail` (tests only) counts down to an injected failure.
+fn build_tree(
+    tris: Vec<openrt_accel::Triangle>,
+    builder: BuilderKind,
+    fail: Option<&mut usize>,
+) -> Result<KdTree, openrt_accel::AccelError> {
+    if let Some(n) = fail {
+        if *n == 0 {
+            return Err(openrt_accel::AccelError::Invalid("injected build failure".into()));
+        }
+        *n -= 1;
+    }
+    KdTree::build(tris, builder)
 }
 
 /// Commits with at least this many instances make their records in parallel.
@@ -111,8 +130,10 @@ impl Context {
     /// - the top-level BSP is rebuilt from the instances' world boxes, or
     ///   kept when none of them changed ([`CommitStats::toplevel_reused`]).
     ///
-    /// On error (an instance of a deleted object, an open definition) nothing
-    /// changes and the previous scene stays current.
+    /// Commit is atomic. On error (an instance of a deleted object, an open
+    /// definition, a failed build) nothing changes: every definition is
+    /// still pending, and the previous scene stays current. Every tree is
+    /// built before anything is installed.
     pub fn commit(&mut self) -> Result<CommitStats, CoreError> {
         let start = Instant::now();
         self.ensure_not_defining("commit")?;
@@ -138,6 +159,11 @@ impl Context {
         let promote_after = self.promote_after;
         let redefinition_builder = self.redefinition_builder;
 
+        // Phase 1 builds everything into `staged` and changes nothing, so
+        // that an error leaves the context and the scene as they were.
+        // `staged[i]` is object slot i's new geometry: a new definition's
+        // tree, or a finished background SAH tree for the current version.
+        let mut staged: Vec<Option<Arc<ObjectGeometry>>> = vec![None; self.objects.len()];
         for (index, slot) in self.objects.iter_mut().enumerate() {
             if !slot.alive {
                 continue;
@@ -146,70 +172,46 @@ impl Context {
                 index: index as u32,
                 generation: slot.generation,
             };
-            if let Some(mesh) = slot.pending.take() {
+            if let Some(mesh) = &slot.pending {
                 let builder = if slot.geometry.is_some() {
                     redefinition_builder
                 } else {
                     BuilderKind::Sah
                 };
                 let t0 = Instant::now();
-                let triangles = mesh.triangles.len();
-                let tree = KdTree::build(mesh.triangles, builder)
+                // NOTE: the definition stays pending until phase 2, so the
+                // builder gets a copy (a memcpy, ~1% of a fast build).
+                let tree = build_tree(mesh.triangles.clone(), builder, self.fail_builds.as_mut())
                     .map_err(|source| CoreError::Accel { call: "commit", source })?;
                 stats.builds.push(BuildRecord {
                     object: id,
                     builder,
-                    triangles,
+                    triangles: mesh.triangles.len(),
                     dropped: mesh.dropped,
                     ms: t0.elapsed().as_secs_f64() * 1e3,
                 });
-                slot.geometry = Some(Arc::new(ObjectGeometry {
+                staged[index] = Some(Arc::new(ObjectGeometry {
                     tree,
-                    shading: Arc::new(mesh.shading),
+                    shading: Arc::new(mesh.shading.clone()),
                 }));
-                slot.version += 1;
-                slot.unchanged_commits = 0;
-                // A running promotion is for older geometry: its result is ignored.
-                slot.promotion = None;
                 continue;
             }
-            let Some(geom) = &slot.geometry else { continue };
-            if geom.builder() != BuilderKind::Fast {
-                continue;
-            }
-            slot.unchanged_commits += 1;
-            // Collect a finished background build.
+            // Collect a finished background build; a result for older
+            // geometry is dropped.
             if let Some(Promotion::Running { handle, .. }) = &slot.promotion
                 && handle.is_finished()
             {
                 slot.promotion = slot.promotion.take().map(Promotion::finish);
             }
-            match slot.promotion.take() {
-                Some(Promotion::Ready { version, tree }) => {
-                    if let (true, Ok(tree)) = (version == slot.version, *tree) {
-                        slot.geometry = Some(Arc::new(ObjectGeometry {
-                            tree,
-                            shading: Arc::clone(&geom.shading),
-                        }));
-                        stats.promotions_swapped.push(id);
-                    }
-                }
-                Some(running) => slot.promotion = Some(running),
-                None => {
-                    if promote_after.is_some_and(|n| slot.unchanged_commits >= n) {
-                        let tris = geom.tree.triangles().to_vec();
-                        let handle = std::thread::spawn(move || KdTree::build_sah(tris));
-                        slot.promotion = Some(Promotion::Running {
-                            version: slot.version,
-                            handle,
-                        });
-                        stats.promotions_started.push(id);
-                    }
-                }
+            if let Some(Promotion::Ready { version, result }) = &slot.promotion
+                && *version == slot.version
+                && let Ok(geometry) = result
+            {
+                staged[index] = Some(Arc::clone(geometry));
             }
         }
 
-        // Instances, in slot order, then the top-level BSP.
+        // Instances, in slot order, then the top-level BSP.        // Instances, in slot order, then the top-level BSP.
         // PERF: an instance whose handle, object geometry and transform are
         // those of the last frame keeps its record (inverses and world box):
         // recomputing 10k records cost 1.5 ms per commit with nothing moved;
@@ -221,7 +223,8 @@ impl Context {
                 .enumerate()
                 .filter(|(_, s)| s.alive)
                 .filter_map(|(i, s)| {
-                    let geom = self.objects[s.object.index as usize].geometry.as_ref()?;
+                    let o = s.object.index as usize;
+                    let geom = staged[o].as_ref().or(self.objects[o].geometry.as_ref())?;
                     let id = InstanceId {
                         index: i as u32,
                         generation: s.generation,
@@ -286,6 +289,9 @@ impl Context {
         stats.toplevel_nodes = bsp.nodes().len();
         stats.instances = records.len();
 
+        // Phase 2 cannot fail: it installs what phase 1 built.
+        self.apply_objects(staged, promote_after, &mut stats);
+
         let materials = if self.materials_dirty {
             self.materials_dirty = false;
             Arc::new(self.materials.clone())
@@ -309,6 +315,74 @@ impl Context {
         });
         stats.total_ms = start.elapsed().as_secs_f64() * 1e3;
         Ok(stats)
+    }
+
+    /// Installs the staged geometry, counts unchanged commits, and starts,
+    /// swaps or records the background SAH builds.
+    fn apply_objects(
+        &mut self,
+        staged: Vec<Option<Arc<ObjectGeometry>>>,
+        promote_after: Option<u32>,
+        stats: &mut CommitStats,
+    ) {
+        let fail = self.fail_promotions;
+        for ((index, slot), new) in self.objects.iter_mut().enumerate().zip(staged) {
+            if !slot.alive {
+                continue;
+            }
+            let id = ObjectId {
+                index: index as u32,
+                generation: slot.generation,
+            };
+            if slot.pending.take().is_some() {
+                slot.geometry = new;
+                slot.version += 1;
+                slot.unchanged_commits = 0;
+                // A running promotion is for older geometry: its result is ignored.
+                slot.promotion = None;
+                continue;
+            }
+            let Some(geom) = &slot.geometry else { continue };
+            if geom.builder() != BuilderKind::Fast {
+                continue;
+            }
+            slot.unchanged_commits = slot.unchanged_commits.saturating_add(1);
+            match slot.promotion.take() {
+                Some(Promotion::Ready { version, result }) if version == slot.version => match result {
+                    Ok(_) => {
+                        slot.geometry = new;
+                        stats.promotions_swapped.push(id);
+                    }
+                    Err(reason) => {
+                        // Recorded once; not retried for this geometry.
+                        stats.promotions_failed.push((id, reason.clone()));
+                        slot.promotion = Some(Promotion::Failed { version, reason });
+                    }
+                },
+                Some(Promotion::Ready { .. }) => {}
+                Some(p @ (Promotion::Running { .. } | Promotion::Failed { .. })) => slot.promotion = Some(p),
+                None => {
+                    if promote_after.is_some_and(|n| slot.unchanged_commits >= n) {
+                        let tris = geom.tree.triangles().to_vec();
+                        let shading = Arc::clone(&geom.shading);
+                        let handle = std::thread::spawn(move || {
+                            let tree = if fail {
+                                Err(openrt_accel::AccelError::Invalid("injected promotion failure".into()))
+                            } else {
+                                KdTree::build_sah(tris)
+                            };
+                            tree.map(|tree| Arc::new(ObjectGeometry { tree, shading }))
+                                .map_err(|e| e.to_string())
+                        });
+                        slot.promotion = Some(Promotion::Running {
+                            version: slot.version,
+                            handle,
+                        });
+                        stats.promotions_started.push(id);
+                    }
+                }
+            }
+        }
     }
 
     /// Blocks until every background SAH build has finished, so that the

@@ -3,22 +3,28 @@
 use std::sync::Arc;
 
 use glam::{Affine3A, Mat3, Mat4, Vec2, Vec3};
-use openrt_accel::{KdTree, Triangle, is_valid_triangle};
+use openrt_accel::{Triangle, is_valid_triangle};
 
 use crate::instance::check_transform;
 use crate::matrix_stack::MatrixStack;
 use crate::object::{ObjectGeometry, ObjectMesh};
 use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind, Scene, Texture, TextureId};
 
-/// A background SAH build of an object that stopped changing.
+/// A background SAH build of an object that stopped changing, for geometry
+/// `version`; the build yields the object's new geometry or why it failed.
 pub(crate) enum Promotion {
     Running {
         version: u64,
-        handle: std::thread::JoinHandle<Result<KdTree, openrt_accel::AccelError>>,
+        handle: std::thread::JoinHandle<Result<Arc<ObjectGeometry>, String>>,
     },
     Ready {
         version: u64,
-        tree: Box<Result<KdTree, openrt_accel::AccelError>>,
+        result: Result<Arc<ObjectGeometry>, String>,
+    },
+    /// Reported once by a commit; not retried for this version.
+    Failed {
+        version: u64,
+        reason: String,
     },
 }
 
@@ -26,16 +32,13 @@ impl Promotion {
     /// Waits for a running build (if needed) and returns it as ready.
     pub(crate) fn finish(self) -> Self {
         match self {
-            Self::Running { version, handle } => {
-                let tree = handle
+            Self::Running { version, handle } => Self::Ready {
+                version,
+                result: handle
                     .join()
-                    .unwrap_or_else(|_| Err(openrt_accel::AccelError::Invalid("background build panicked".into())));
-                Self::Ready {
-                    version,
-                    tree: Box::new(tree),
-                }
-            }
-            ready @ Self::Ready { .. } => ready,
+                    .unwrap_or_else(|_| Err("the background build panicked".into())),
+            },
+            done => done,
         }
     }
 }
@@ -112,6 +115,10 @@ pub struct Context {
     pub(crate) redefinition_builder: openrt_accel::BuilderKind,
     /// Keeps the top-level build's scratch memory from frame to frame.
     pub(crate) bsp_builder: openrt_accel::BspBuilder,
+    /// Tests: object builds left before an injected build failure.
+    pub(crate) fail_builds: Option<usize>,
+    /// Tests: background builds fail.
+    pub(crate) fail_promotions: bool,
 }
 
 impl Default for Context {
@@ -141,6 +148,8 @@ impl Context {
             promote_after: Some(3),
             redefinition_builder: openrt_accel::BuilderKind::Fast,
             bsp_builder: openrt_accel::BspBuilder::default(),
+            fail_builds: None,
+            fail_promotions: false,
         }
     }
 
@@ -247,6 +256,37 @@ impl Context {
         Ok(dropped)
     }
 
+    /// Abandons the open definition: the object keeps its previous
+    /// definition (or stays undefined), and the matrix stack and current
+    /// material are restored as `end_object` would. Use it when a
+    /// definition cannot be completed; [`Context::define_object`] does it
+    /// for you.
+    pub fn abort_object(&mut self) -> Result<ObjectId, CoreError> {
+        let Some(d) = self.def.take() else {
+            return Err(CoreError::NotInObject { call: "abort_object" });
+        };
+        self.matrices = d.saved_stack;
+        self.current_material = d.saved_material;
+        Ok(d.id)
+    }
+
+    /// Defines `id` with the calls made by `body` between `begin_object`
+    /// and `end_object`; if `body` or `end_object` fails, the definition is
+    /// aborted ([`Context::abort_object`]) and the context is as before the
+    /// call. Returns the number of degenerate triangles dropped.
+    pub fn define_object<E: From<CoreError>>(
+        &mut self,
+        id: ObjectId,
+        body: impl FnOnce(&mut Self) -> Result<(), E>,
+    ) -> Result<usize, E> {
+        self.begin_object(id)?;
+        let done = body(self).and_then(|()| self.end_object().map_err(E::from));
+        if done.is_err() && self.def.as_ref().is_some_and(|d| d.id == id) {
+            let _ = self.abort_object();
+        }
+        done
+    }
+
     /// Deletes an object. Its id becomes stale; instances still referring to
     /// it make the next commit fail until they are removed.
     pub fn delete_object(&mut self, id: ObjectId) -> Result<(), CoreError> {
@@ -261,11 +301,15 @@ impl Context {
         self.object_slot("delete_object", id)?;
         let slot = &mut self.objects[id.index as usize];
         slot.alive = false;
-        slot.generation = slot.generation.wrapping_add(1);
         slot.pending = None;
         slot.geometry = None;
         slot.promotion = None;
-        self.free_objects.push(id.index);
+        // A slot whose generation would wrap is retired, so that no handle
+        // is ever issued twice.
+        if let Some(g) = slot.generation.checked_add(1) {
+            slot.generation = g;
+            self.free_objects.push(id.index);
+        }
         Ok(())
     }
 
@@ -598,9 +642,24 @@ impl Context {
     pub fn remove_instance(&mut self, id: InstanceId) -> Result<(), CoreError> {
         let s = self.instance_slot_mut("remove_instance", id)?;
         s.alive = false;
-        s.generation = s.generation.wrapping_add(1);
-        self.free_instances.push(id.index);
+        // As for objects: a slot whose generation would wrap is retired.
+        if let Some(g) = s.generation.checked_add(1) {
+            s.generation = g;
+            self.free_instances.push(id.index);
+        }
         Ok(())
+    }
+
+    /// Why the background SAH build of an object's current geometry failed
+    /// (`None`: it did not fail, or was not tried). A failed build is
+    /// reported once in [`CommitStats::promotions_failed`](crate::CommitStats)
+    /// and not retried until the object is redefined.
+    pub fn promotion_failure(&self, id: ObjectId) -> Result<Option<&str>, CoreError> {
+        let slot = self.object_slot("promotion_failure", id)?;
+        Ok(match &slot.promotion {
+            Some(Promotion::Failed { version, reason }) if *version == slot.version => Some(reason),
+            _ => None,
+        })
     }
 
     pub(crate) fn ensure_not_defining(&self, call: &'static str) -> Result<(), CoreError> {

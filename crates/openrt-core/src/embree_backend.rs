@@ -21,6 +21,8 @@ pub struct EmbreeScene {
     geoms: Vec<Arc<ObjectGeometry>>,
     /// Per instance, its Embree object.
     inst_obj: Vec<usize>,
+    /// Frame of the synced scene (stamped on the hits).
+    frame: u64,
 }
 
 impl EmbreeScene {
@@ -65,6 +67,7 @@ impl EmbreeScene {
         }
         self.geoms = geoms;
         self.inst_obj = inst_obj;
+        self.frame = scene.frame();
         Ok(())
     }
 
@@ -73,8 +76,9 @@ impl EmbreeScene {
     }
 }
 
-fn scene_hit((instance, h): (u32, openrt_accel::Hit)) -> SceneHit {
+fn scene_hit(frame: u64, (instance, h): (u32, openrt_accel::Hit)) -> SceneHit {
     SceneHit {
+        frame,
         t: h.t,
         instance,
         prim: h.prim,
@@ -90,7 +94,7 @@ impl EmbreeScene {
     /// Before the first [`EmbreeScene::sync`].
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
-        self.tl().intersect_instance(ray).map(scene_hit)
+        self.tl().intersect_instance(ray).map(|h| scene_hit(self.frame, h))
     }
 
     /// Any hit (rtcOccluded1).
@@ -102,7 +106,7 @@ impl EmbreeScene {
     /// Closest hits of a packet (rtcIntersect4/8/16).
     #[must_use]
     pub fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N] {
-        self.tl().intersect_packet(rays, lanes).map(|h| h.map(scene_hit))
+        self.tl().intersect_packet(rays, lanes).map(|h| h.map(|h| scene_hit(self.frame, h)))
     }
 
     /// The blocked lanes of a packet (rtcOccluded4/8/16).

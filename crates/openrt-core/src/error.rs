@@ -111,12 +111,17 @@ pub enum CoreError {
         what: String,
     },
     /// A transform that can not be inverted.
-    #[error("{call}: singular transform (determinant {det:e}); instance transforms must be invertible")]
+    #[error(
+        "{call}: singular or ill-conditioned transform (determinant {det:e}, |det| / longest column^3 = {conditioning:e}); instance transforms must be invertible with conditioning at least MIN_TRANSFORM_CONDITIONING = {min:e}",
+        min = crate::MIN_TRANSFORM_CONDITIONING
+    )]
     SingularTransform {
         /// The call.
         call: &'static str,
         /// Its determinant.
         det: f32,
+        /// `|det| / longest column^3`.
+        conditioning: f32,
     },
     /// A projective matrix where an affine one is needed.
     #[error("{call}: transform is not affine (last row {row:?}, expected [0, 0, 0, 1])")]
@@ -140,6 +145,36 @@ pub enum CoreError {
         /// The backend's name.
         backend: &'static str,
         /// What it reported.
+        reason: String,
+    },
+    /// A value beyond a named limit, such as [`crate::MAX_IMAGE_SIDE`].
+    #[error("{call}: {what} is {value}, outside the limit {limit}")]
+    Limit {
+        /// The call.
+        call: &'static str,
+        /// What was measured.
+        what: String,
+        /// The value given.
+        value: u64,
+        /// The limit it broke (a maximum, or 1 for a minimum of one).
+        limit: u64,
+    },
+    /// A hit given to [`crate::Scene::surface`] that another scene found.
+    #[error("surface: the hit (instance {instance}, triangle {prim}) was found in frame {hit_frame}, not in this scene (frame {scene_frame}), or names a triangle it does not have")]
+    ForeignHit {
+        /// The hit's frame.
+        hit_frame: u64,
+        /// The scene's frame.
+        scene_frame: u64,
+        /// The hit's instance index.
+        instance: u32,
+        /// The hit's triangle.
+        prim: u32,
+    },
+    /// The render pool could not start a thread, or a render thread failed.
+    #[error("render: {reason}")]
+    RenderThread {
+        /// What happened, naming the thread.
         reason: String,
     },
     /// The acceleration layer refused the input.

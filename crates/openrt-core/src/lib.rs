@@ -79,6 +79,7 @@ mod error;
 mod ids;
 mod instance;
 mod light;
+mod limits;
 mod material;
 mod matrix_stack;
 mod object;
@@ -96,8 +97,12 @@ pub use context::Context;
 pub use embree_backend::EmbreeScene;
 pub use error::CoreError;
 pub use ids::{InstanceId, MaterialId, ObjectId, TextureId};
-pub use instance::InstanceRecord;
+pub use instance::{InstanceRecord, MIN_TRANSFORM_CONDITIONING};
 pub use light::{Environment, PointLight};
+pub use limits::{
+    MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SHADE_DEPTH, MAX_THREADS, RENDER_STACK_BYTES, check_depth, check_image_size,
+    check_threads,
+};
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{ObjectGeometry, ObjectMesh, ShadingData};

@@ -1,6 +1,7 @@
 //! Parallel frame rendering: a persistent pool of worker threads taking
 //! tiles from a shared counter.
 
+use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::thread::JoinHandle;
@@ -9,11 +10,15 @@ use std::time::Instant;
 use crossbeam::channel::{Receiver, Sender, unbounded};
 use glam::Vec3;
 use openrt_accel::{PacketWidth, Ray, lanes_of};
+use parking_lot::Mutex;
 
 use crate::camera::CameraRays;
 use crate::shade::Shader;
 use crate::tracer::Tracer;
-use crate::{Camera, CoreError, Environment, RayCounts, RenderMode, Scene};
+use crate::{
+    Camera, CoreError, Environment, RENDER_STACK_BYTES, RayCounts, RenderMode, Scene, check_depth, check_image_size,
+    check_threads,
+};
 
 /// Tile edge in pixels.
 pub const TILE: u32 = 16;
@@ -97,6 +102,19 @@ pub struct RenderSettings {
     pub max_depth: u32,
 }
 
+impl RenderSettings {
+    /// Checks the image size ([`MAX_IMAGE_SIDE`](crate::MAX_IMAGE_SIDE),
+    /// [`MAX_IMAGE_PIXELS`](crate::MAX_IMAGE_PIXELS)) and the depth
+    /// ([`MAX_SHADE_DEPTH`](crate::MAX_SHADE_DEPTH)); `call` names the caller in the error.
+    ///
+    /// # Errors
+    /// [`CoreError::Limit`] naming the limit broken.
+    pub fn validate(&self, call: &'static str) -> Result<(), CoreError> {
+        check_image_size(call, self.width, self.height)?;
+        check_depth(call, self.max_depth)
+    }
+}
+
 impl Default for RenderSettings {
     fn default() -> Self {
         Self {
@@ -157,6 +175,8 @@ struct FrameJob {
     next: AtomicUsize,
     /// Each worker sends its tiles once, when no tile is left.
     results: Sender<Vec<TileResult>>,
+    /// The first worker panic of this frame.
+    failure: Mutex<Option<String>>,
 }
 
 struct TileResult {
@@ -179,31 +199,57 @@ pub struct Renderer {
 }
 
 impl Renderer {
-    /// Starts `threads` workers (at least one).
-    #[must_use]
-    pub fn new(threads: usize) -> Self {
+    /// Starts `threads` workers, each with a stack of [`RENDER_STACK_BYTES`].
+    ///
+    /// # Errors
+    /// [`CoreError::Limit`] for 0 or more than [`MAX_THREADS`](crate::MAX_THREADS)
+    /// threads, [`CoreError::RenderThread`] when the system refuses a thread.
+    pub fn new(threads: usize) -> Result<Self, CoreError> {
+        check_threads("Renderer::new", threads)?;
         let (tx, rx) = unbounded::<Arc<FrameJob>>();
-        let workers = (0..threads.max(1))
-            .map(|i| {
-                let rx: Receiver<Arc<FrameJob>> = rx.clone();
-                std::thread::Builder::new()
-                    .name(format!("openrt-render-{i}"))
-                    .spawn(move || {
-                        while let Ok(job) = rx.recv() {
-                            render_tiles(&job);
+        let mut workers = Vec::with_capacity(threads);
+        for i in 0..threads {
+            let rx: Receiver<Arc<FrameJob>> = rx.clone();
+            let spawned = std::thread::Builder::new()
+                .name(format!("openrt-render-{i}"))
+                .stack_size(RENDER_STACK_BYTES)
+                .spawn(move || {
+                    while let Ok(job) = rx.recv() {
+                        // A panic is a bug; it fails this frame with an
+                        // error naming the thread, and the thread lives on.
+                        if let Err(p) = std::panic::catch_unwind(AssertUnwindSafe(|| render_tiles(&job))) {
+                            let what = p
+                                .downcast_ref::<&str>()
+                                .map(ToString::to_string)
+                                .or_else(|| p.downcast_ref::<String>().cloned())
+                                .unwrap_or_else(|| "unknown panic".into());
+                            let mut slot = job.failure.lock();
+                            slot.get_or_insert(format!("render thread {i} panicked: {what}"));
                         }
-                    })
-                    .expect("spawning a render thread")
-            })
-            .collect();
-        Self {
+                    }
+                });
+            match spawned {
+                Ok(h) => workers.push(h),
+                Err(e) => {
+                    // The threads already started end when `tx` goes.
+                    drop(tx);
+                    for w in workers {
+                        let _ = w.join();
+                    }
+                    return Err(CoreError::RenderThread {
+                        reason: format!("cannot start render thread {i} of {threads}: {e}"),
+                    });
+                }
+            }
+        }
+        Ok(Self {
             jobs: Some(tx),
             workers,
             backend: Backend::default(),
             width: PacketWidth::detect(),
             #[cfg(feature = "embree")]
             embree: Arc::default(),
-        }
+        })
     }
 
     /// Chooses how rays find their hits (default [`Backend::Kd`]).
@@ -243,6 +289,7 @@ impl Renderer {
         camera: &Camera,
         settings: &RenderSettings,
     ) -> Result<(Image, FrameStats), CoreError> {
+        settings.validate("render")?;
         let cam = camera.rays(settings.width, settings.height)?;
         let start = Instant::now();
         // The Embree peer's own commit counts as part of its frame.
@@ -270,11 +317,16 @@ impl Renderer {
             n_tiles,
             next: AtomicUsize::new(0),
             results: rtx,
+            failure: Mutex::new(None),
         });
-        let jobs = self.jobs.as_ref().expect("the pool lives until drop");
+        let dead = || CoreError::RenderThread {
+            reason: "the render threads have stopped".into(),
+        };
+        let jobs = self.jobs.as_ref().ok_or_else(dead)?;
         for _ in 0..self.workers.len() {
-            jobs.send(Arc::clone(&job)).expect("render threads are alive");
+            jobs.send(Arc::clone(&job)).map_err(|_| dead())?;
         }
+        let failure = Arc::clone(&job);
         drop(job);
         let mut pixels = vec![Vec3::ZERO; (settings.width * settings.height) as usize];
         let mut rays = RayCounts::default();
@@ -282,7 +334,17 @@ impl Renderer {
         // of this thread per tile cost ~10% of a GL-like kitchen frame.
         let mut received = 0;
         while received < n_tiles {
-            let tiles = rrx.recv().expect("every tile is rendered");
+            // Every worker drops the job when it is done, so the channel
+            // closes if a tile was lost.
+            let Ok(tiles) = rrx.recv() else {
+                return Err(CoreError::RenderThread {
+                    reason: failure
+                        .failure
+                        .lock()
+                        .take()
+                        .unwrap_or_else(|| format!("only {received} of {n_tiles} tiles came back")),
+                });
+            };
             for tile in tiles {
                 received += 1;
                 let (tx, ty) = (tile.index as u32 % tiles_x, tile.index as u32 / tiles_x);

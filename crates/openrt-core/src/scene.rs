@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3};
 use openrt_accel::{InstanceBsp, Ray, Triangle, lanes_of, traverse, traverse_packet};
 
 use crate::instance::InstanceRecord;
-use crate::{InstanceId, Material, MaterialId, ObjectId, Texture};
+use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, Texture};
 
 /// Entries of the per-ray mailbox (direct-mapped on the instance index).
 const MAILBOX: usize = 32;
@@ -14,6 +14,9 @@ const MAILBOX: usize = 32;
 /// The closest hit in a scene.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneHit {
+    /// [`Scene::frame`] of the scene that found the hit; [`Scene::surface`]
+    /// takes only its own scene's hits.
+    pub frame: u64,
     /// Ray parameter (same in world and object space).
     pub t: f32,
     /// Index into [`Scene::instances`].
@@ -121,6 +124,7 @@ impl Scene {
             let local = inst.ray_to_object(ray, *closest);
             if let Some(h) = inst.geometry.tree.intersect_within(&local, closest) {
                 best = Some(SceneHit {
+                    frame: self.frame,
                     t: h.t,
                     instance: i,
                     prim: h.prim,
@@ -192,6 +196,7 @@ impl Scene {
             for l in lanes_of(found) {
                 if let Some(h) = hits[l] {
                     best[l] = Some(SceneHit {
+                        frame: self.frame,
                         t: h.t,
                         instance: i,
                         prim: h.prim,
@@ -266,11 +271,23 @@ impl Scene {
     }
 
     /// World-space shading information for a hit of `ray`.
-    #[must_use]
-    pub fn surface(&self, ray: &Ray, hit: &SceneHit) -> Surface {
-        let inst = &self.instances[hit.instance as usize];
+    ///
+    /// # Errors
+    /// [`CoreError::ForeignHit`] for a hit found in another frame's scene,
+    /// or naming an instance or triangle this scene does not have.
+    pub fn surface(&self, ray: &Ray, hit: &SceneHit) -> Result<Surface, CoreError> {
+        let foreign = || CoreError::ForeignHit {
+            hit_frame: hit.frame,
+            scene_frame: self.frame,
+            instance: hit.instance,
+            prim: hit.prim,
+        };
+        if hit.frame != self.frame {
+            return Err(foreign());
+        }
+        let inst = self.instances.get(hit.instance as usize).ok_or_else(foreign)?;
         let p = hit.prim as usize;
-        let tri = &inst.geometry.tree.triangles()[p];
+        let tri = inst.geometry.tree.triangles().get(p).ok_or_else(foreign)?;
         let sh = &inst.geometry.shading;
         let b0 = 1.0 - hit.b1 - hit.b2;
         let ng_obj = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
@@ -290,7 +307,7 @@ impl Scene {
         let point = w[0] * b0 + w[1] * hit.b1 + w[2] * hit.b2;
         let point = if point.is_finite() { point } else { ray.at(hit.t) };
         let error_scale = w.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
-        Surface {
+        Ok(Surface {
             point,
             error_scale,
             geometric_normal,
@@ -299,7 +316,7 @@ impl Scene {
             material: sh.materials[p],
             instance: inst.id,
             object: inst.object,
-        }
+        })
     }
 
     /// Every instanced triangle moved to world space in f32, with its

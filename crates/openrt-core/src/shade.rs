@@ -164,7 +164,8 @@ impl<T: Tracer> Shader<'_, T> {
         let mut passes = 0;
         let surf = loop {
             let h = hit?;
-            let surf = scene.surface(&ray, &h);
+            // NOTE: the tracer's hits come from this scene, so this never fails.
+            let surf = scene.surface(&ray, &h).ok()?;
             let mat = &scene.materials()[surf.material.index() as usize];
             if mat.one_sided && surf.geometric_normal.dot(ray.dir) > 0.0 && passes < MAX_PASS_THROUGH {
                 passes += 1;

@@ -110,12 +110,12 @@ fn state_set_inside_a_definition_does_not_leak() {
     let scene = ctx.scene();
     let ray = Ray::infinite(Vec3::new(0.3, 0.3, 10.0), -Vec3::Z);
     let h = scene.intersect(&ray).unwrap();
-    let s = scene.surface(&ray, &h);
+    let s = scene.surface(&ray, &h).expect("a hit of this scene");
     assert_eq!(s.material, red);
     assert!((s.uv - Vec2::splat(0.5)).length() < 1e-6);
     let ray2 = Ray::infinite(Vec3::new(0.1, 0.1, -4.0), -Vec3::Z);
     let h2 = scene.intersect(&ray2).unwrap();
-    let s2 = scene.surface(&ray2, &h2);
+    let s2 = scene.surface(&ray2, &h2).expect("a hit of this scene");
     assert_eq!(s2.material, openrt_core::MaterialId::DEFAULT);
     assert_eq!(s2.uv, Vec2::ZERO);
 }

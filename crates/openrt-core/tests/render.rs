@@ -129,7 +129,7 @@ fn test_scene(w: Mat4) -> (Context, Camera, Environment) {
 }
 
 fn render(ctx: &Context, cam: &Camera, env: Environment, threads: usize, w: u32, h: u32, mode: RenderMode) -> Image {
-    let r = Renderer::new(threads);
+    let r = Renderer::new(threads).expect("a render pool");
     let settings = RenderSettings {
         width: w,
         height: h,
@@ -163,7 +163,7 @@ fn images_are_bit_identical_for_1_2_and_5_threads() {
 #[test]
 fn frame_stats_count_rays_by_kind() {
     let (ctx, cam, env) = test_scene(Mat4::IDENTITY);
-    let r = Renderer::new(2);
+    let r = Renderer::new(2).expect("a render pool");
     let env = Arc::new(env);
     let s = RenderSettings {
         width: 64,

@@ -161,7 +161,7 @@ fn animated_scenes_match_the_flattened_oracle_every_frame() {
                     .unwrap_or_else(|e| panic!("seed {seed} frame {frame} shadow ray {r}: {e}"));
                 // Geometric normals follow the world-space winding, mirrors included.
                 if let Some(h) = scene.intersect(ray) {
-                    let s = scene.surface(ray, &h);
+                    let s = scene.surface(ray, &h).expect("a hit of this scene");
                     let w = world[index_of(h.instance, h.prim) as usize];
                     let n = (w[1] - w[0]).cross(w[2] - w[0]).normalize();
                     assert!(

@@ -14,6 +14,7 @@
 pub mod aff;
 mod builtin;
 mod error;
+mod limits;
 pub mod generate;
 mod loader;
 mod player;
@@ -23,7 +24,12 @@ mod texture_io;
 
 pub use builtin::{DEFAULT_SCENE_RON, default_scene};
 pub use error::SceneError;
-pub use loader::{LoadedScene, RonScene, load_ron, load_ron_any, load_ron_str};
+pub use limits::{
+    MAX_ANIMART_TRIANGLES, MAX_BLOCK_NESTING, MAX_FILE_BYTES, MAX_FRAMES, MAX_HEADER_COUNT, MAX_INCLUDE_DEPTH,
+    MAX_INCLUDES, MAX_SCENE_TRIANGLES, MAX_SPHERE_SEGMENTS, MAX_TERRAIN_GRID, MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS,
+    MAX_TREE_TRIANGLES, MAX_TREES,
+};
+pub use loader::{LoadedScene, RonScene, load_ron, load_ron_any, load_ron_str, parse_obj};
 pub use player::ScenePlayer;
 pub use ron_format::{
     AnimationDesc, BartDesc, CameraDesc, CameraKeys, GeneratorDesc, InstanceDesc, InstanceKeys, LightDesc,

@@ -8,11 +8,15 @@ use std::sync::Arc;
 use glam::{Mat4, Quat, Vec2, Vec3};
 use openrt_core::{
     Camera, CommitStats, Context, CoreError, Environment, InstanceId, Material, MaterialId, ObjectId, PointLight,
-    PrimitiveKind, RenderSettings,
+    PrimitiveKind, RenderSettings, check_image_size,
 };
 use rand::{Rng, SeedableRng};
 
 use crate::SceneError;
+use crate::limits::{
+    MAX_ANIMART_TRIANGLES, MAX_FRAMES, MAX_SCENE_TRIANGLES, MAX_SPHERE_SEGMENTS, MAX_TERRAIN_GRID, MAX_TREE_TRIANGLES,
+    MAX_TREES, read_file,
+};
 use crate::aff::{AffPlayer, AnimationRange, RotKey, Tcb, Track, VecKey, interpolate_vec, parse_aff};
 use crate::generate::{animart, heightfield, terrain_height, tree};
 use crate::ron_format::{GeneratorDesc, InstanceKeys, ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp};
@@ -65,16 +69,16 @@ impl Morph {
 
     fn define(&self, ctx: &mut Context, time: f32) -> Result<(), CoreError> {
         let v = self.vertices_at(time);
-        ctx.begin_object(self.id)?;
-        ctx.material(self.material)?;
-        ctx.begin(PrimitiveKind::Triangles)?;
-        for t in &self.triangles {
-            for &i in t {
-                ctx.vertex(v[i as usize])?;
+        ctx.define_object(self.id, |ctx| {
+            ctx.material(self.material)?;
+            ctx.begin(PrimitiveKind::Triangles)?;
+            for t in &self.triangles {
+                for &i in t {
+                    ctx.vertex(v[i as usize])?;
+                }
             }
-        }
-        ctx.end()?;
-        ctx.end_object()?;
+            ctx.end()
+        })?;
         Ok(())
     }
 }
@@ -157,6 +161,30 @@ fn track(keys: &InstanceKeys) -> Track {
     }
 }
 
+/// Key times must be finite and must not decrease (the AFF rule).
+fn check_times(what: &str, times: impl Iterator<Item = f32>) -> Result<(), String> {
+    let mut prev = f32::NEG_INFINITY;
+    for t in times {
+        if !t.is_finite() {
+            return Err(format!("{what}: key time {t} is not finite"));
+        }
+        if t < prev {
+            return Err(format!("{what}: key times must not decrease ({t} after {prev})"));
+        }
+        prev = t;
+    }
+    Ok(())
+}
+
+/// [`check_times`], and finite values.
+fn check_vec_keys(what: &str, keys: &[(f32, [f32; 3])]) -> Result<(), String> {
+    check_times(what, keys.iter().map(|k| k.0))?;
+    match keys.iter().find(|(_, v)| !Vec3::from_array(*v).is_finite()) {
+        Some((t, v)) => Err(format!("{what}: the key at time {t} has the value {v:?}, which is not finite")),
+        None => Ok(()),
+    }
+}
+
 /// What a `.ron` file opens as.
 pub enum RonScene {
     /// A scene described in the file.
@@ -178,9 +206,10 @@ pub fn load_ron(path: &Path) -> Result<LoadedScene, SceneError> {
 
 /// Reads a RON file: a scene, or a wrapper around a BART scene.
 pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+    let bytes = read_file(path)?;
+    let text = String::from_utf8(bytes).map_err(|e| SceneError::Invalid {
         path: path.to_path_buf(),
-        source,
+        what: format!("not UTF-8 text (byte {} is not valid UTF-8)", e.utf8_error().valid_up_to()),
     })?;
     let file = parse_ron(&text, path)?;
     if let Some(b) = &file.bart {
@@ -193,6 +222,14 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
         let aff = crate::aff::bart_dir().join(&b.file);
         let mut scene = parse_aff(&aff)?;
         if let Some(n) = b.animart_triangles {
+            if n > MAX_ANIMART_TRIANGLES {
+                return Err(SceneError::Invalid {
+                    path: path.to_path_buf(),
+                    what: format!(
+                        "animart_triangles {n} is beyond the limit of {MAX_ANIMART_TRIANGLES} (MAX_ANIMART_TRIANGLES)"
+                    ),
+                });
+            }
             if scene.materials.is_empty() {
                 return Err(SceneError::Invalid {
                     path: aff,
@@ -211,6 +248,18 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
         }
         .build(&file)?,
     )))
+}
+
+/// The models of an OBJ file's bytes, through `tobj` (triangulated, one
+/// index per vertex; `.mtl` files are not read).
+///
+/// # Errors
+/// `tobj`'s error for malformed text.
+pub fn parse_obj(bytes: &[u8]) -> Result<Vec<tobj::Model>, tobj::LoadError> {
+    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &tobj::GPU_LOAD_OPTIONS, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })?;
+    Ok(models)
 }
 
 fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
@@ -308,6 +357,91 @@ impl Builder {
         }
     }
 
+    /// Checks the file's sizes and keys before anything is built: the
+    /// resolution against the renderer's image limits, the triangle count
+    /// against [`MAX_SCENE_TRIANGLES`], generator and sphere sizes, the
+    /// frame count, and keys (finite, times not decreasing, rotation axes
+    /// not zero), the same rules as AFF keys.
+    fn check_limits(&self, f: &SceneFile) -> Result<(), SceneError> {
+        let (w, h) = f.resolution;
+        check_image_size("resolution", w, h).map_err(|e| self.invalid(e.to_string()))?;
+        if let Some(a) = f.animation
+            && a.frames > MAX_FRAMES
+        {
+            return Err(self.invalid(format!(
+                "animation: {} frames is beyond the limit of {MAX_FRAMES} (MAX_FRAMES)",
+                a.frames
+            )));
+        }
+        let mut triangles = 0usize;
+        for (name, o) in &f.objects {
+            triangles = triangles.saturating_add(match o {
+                ObjectDesc::Mesh { triangles, .. } | ObjectDesc::Morph { triangles, .. } => triangles.len(),
+                ObjectDesc::Box { .. } => 12,
+                ObjectDesc::Quad { .. } => 2,
+                ObjectDesc::Obj { .. } => 0,
+                ObjectDesc::Sphere { segments, .. } => {
+                    if *segments > MAX_SPHERE_SEGMENTS || *segments < 2 {
+                        return Err(self.invalid(format!(
+                            "object '{name}': sphere segments {segments} outside 2..={MAX_SPHERE_SEGMENTS} (MAX_SPHERE_SEGMENTS)"
+                        )));
+                    }
+                    4 * (*segments as usize).pow(2)
+                }
+            });
+            if let ObjectDesc::Morph { keys, .. } = o {
+                check_times(&format!("object '{name}' keys"), keys.iter().map(|k| k.0)).map_err(|e| self.invalid(e))?;
+            }
+        }
+        for g in &f.generators {
+            let GeneratorDesc::Terrain {
+                grid,
+                trees,
+                tree_triangles,
+                ..
+            } = *g;
+            for (what, value, limit) in [
+                ("grid", grid, MAX_TERRAIN_GRID),
+                ("trees", trees, MAX_TREES),
+                ("tree_triangles", tree_triangles, MAX_TREE_TRIANGLES),
+            ] {
+                if value > limit {
+                    return Err(self.invalid(format!("Terrain: {what} {value} is beyond the limit of {limit}")));
+                }
+            }
+            triangles = triangles
+                .saturating_add(2 * (grid as usize).pow(2))
+                .saturating_add(2 * tree_triangles as usize);
+        }
+        if triangles > MAX_SCENE_TRIANGLES {
+            return Err(self.invalid(format!(
+                "{triangles} triangles is beyond the limit of {MAX_SCENE_TRIANGLES} (MAX_SCENE_TRIANGLES)"
+            )));
+        }
+        for (k, inst) in f.instances.iter().enumerate() {
+            let Some(keys) = &inst.keys else { continue };
+            let what = |list: &str| format!("instance {k} ({}) {list} keys", inst.object);
+            check_vec_keys(&what("translate"), &keys.translate).map_err(|e| self.invalid(e))?;
+            check_vec_keys(&what("scale"), &keys.scale).map_err(|e| self.invalid(e))?;
+            check_times(&what("rotate"), keys.rotate.iter().map(|k| k.0)).map_err(|e| self.invalid(e))?;
+            if let Some((t, axis, deg)) = keys
+                .rotate
+                .iter()
+                .find(|(_, axis, deg)| !deg.is_finite() || Vec3::from_array(*axis).try_normalize().is_none())
+            {
+                return Err(self.invalid(format!(
+                    "{}: the key at time {t} has axis {axis:?} and angle {deg}; the axis must be finite and not zero, the angle finite",
+                    what("rotate")
+                )));
+            }
+        }
+        if let Some(keys) = &f.camera_keys {
+            check_vec_keys("camera 'from' keys", &keys.from).map_err(|e| self.invalid(e))?;
+            check_vec_keys("camera 'at' keys", &keys.at).map_err(|e| self.invalid(e))?;
+        }
+        Ok(())
+    }
+
     fn invalid(&self, what: String) -> SceneError {
         SceneError::Invalid {
             path: self.path.clone(),
@@ -316,6 +450,7 @@ impl Builder {
     }
 
     fn build(&self, f: &SceneFile) -> Result<LoadedScene, SceneError> {
+        self.check_limits(f)?;
         let mut ctx = Context::new();
         let dir = self.path.parent().unwrap_or(Path::new("."));
         let mut textures = BTreeMap::new();
@@ -376,7 +511,10 @@ impl Builder {
                 morphs.push(morph);
             } else {
                 ctx.begin_object(id).map_err(self.core())?;
-                self.emit(&mut ctx, name, o, &material)?;
+                if let Err(e) = self.emit(&mut ctx, name, o, &material) {
+                    let _ = ctx.abort_object();
+                    return Err(e);
+                }
                 ctx.end_object().map_err(self.core())?;
             }
             objects.insert(name.as_str(), id);
@@ -543,9 +681,11 @@ impl Builder {
                 sway_degrees,
                 seed,
             } => {
-                if !(size > 0.0 && height.is_finite() && tree_size > 0.0) || grid == 0 || grid > 4096 {
+                if !(size.is_finite() && size > 0.0 && height.is_finite() && tree_size.is_finite() && tree_size > 0.0 && sway_degrees.is_finite())
+                    || grid == 0
+                {
                     return Err(self.invalid(format!(
-                        "Terrain: size {size}, grid {grid}, tree size {tree_size} out of range"
+                        "Terrain: size {size}, grid {grid}, tree size {tree_size}, sway {sway_degrees}: sizes must be positive and finite, the grid at least 1"
                     )));
                 }
                 let ground = ctx
@@ -661,10 +801,18 @@ impl Builder {
             ObjectDesc::Obj { path, material: m } => {
                 ctx.material(material(m, name)?).map_err(&core)?;
                 let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
-                let (models, _) = tobj::load_obj(&file, &tobj::GPU_LOAD_OPTIONS).map_err(|e| SceneError::Invalid {
+                let bytes = read_file(&file)?;
+                let models = parse_obj(&bytes).map_err(|e| SceneError::Invalid {
                     path: file.clone(),
                     what: format!("OBJ file (used by object '{name}' in {}): {e}", self.path.display()),
                 })?;
+                let count = models.iter().map(|m| m.mesh.indices.len() / 3).sum::<usize>();
+                if count > MAX_SCENE_TRIANGLES {
+                    return Err(SceneError::Invalid {
+                        path: file.clone(),
+                        what: format!("{count} triangles is beyond the limit of {MAX_SCENE_TRIANGLES} (MAX_SCENE_TRIANGLES)"),
+                    });
+                }
                 ctx.begin(PrimitiveKind::Triangles).map_err(&core)?;
                 for model in &models {
                     let mesh = &model.mesh;
@@ -707,7 +855,7 @@ impl Builder {
                 if !radius.is_finite() || *radius <= 0.0 {
                     return Err(self.invalid(format!("object '{name}': sphere radius {radius} must be positive")));
                 }
-                emit_sphere(ctx, v3(*center), *radius, (*segments).min(1024)).map_err(&core)
+                emit_sphere(ctx, v3(*center), *radius, *segments).map_err(&core)
             }
             ObjectDesc::Quad {
                 corners,

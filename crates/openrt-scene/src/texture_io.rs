@@ -6,6 +6,7 @@ use glam::Vec3;
 use openrt_core::Texture;
 
 use crate::SceneError;
+use crate::limits::{MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS};
 
 /// Loads an RGB texture; errors name the texture file and the scene using it.
 pub fn load_texture(texture: &Path, used_by: &Path) -> Result<Texture, SceneError> {
@@ -14,10 +15,28 @@ pub fn load_texture(texture: &Path, used_by: &Path) -> Result<Texture, SceneErro
         path: used_by.to_path_buf(),
         msg,
     };
-    let bytes = std::fs::read(texture).map_err(|e| err(format!("cannot read: {e}")))?;
-    let img = image::load_from_memory(&bytes).map_err(|e| err(format!("not a PPM or PNG image: {e}")))?;
+    let bytes = crate::limits::read_file(texture).map_err(|e| err(e.to_string()))?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| err(format!("cannot read: {e}")))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_TEXTURE_SIDE);
+    limits.max_image_height = Some(MAX_TEXTURE_SIDE);
+    limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 4);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| match e {
+        image::ImageError::Limits(l) => err(format!(
+            "beyond the texture limits ({MAX_TEXTURE_SIDE} texels a side, {MAX_TEXTURE_TEXELS} texels): {l}"
+        )),
+        e => err(format!("not a PPM or PNG image: {e}")),
+    })?;
+    let (w, h) = (img.width(), img.height());
+    if u64::from(w) * u64::from(h) > MAX_TEXTURE_TEXELS {
+        return Err(err(format!(
+            "{w}x{h} texels is beyond the limit of {MAX_TEXTURE_TEXELS} texels (MAX_TEXTURE_TEXELS)"
+        )));
+    }
     let rgb = img.to_rgb8();
-    let (w, h) = rgb.dimensions();
     let texels = rgb
         .pixels()
         .map(|p| Vec3::new(f32::from(p[0]), f32::from(p[1]), f32::from(p[2])) / 255.0)

@@ -46,7 +46,7 @@ fn frame_rays(scene: &Scene, env: &Environment, cam: &Camera, w: u32, h: u32) ->
     let (mut shadow, mut mirror, mut refr) = (Vec::new(), Vec::new(), Vec::new());
     for r in &primary {
         let Some(hit) = scene.intersect(r) else { continue };
-        let s = scene.surface(r, &hit);
+        let s = scene.surface(r, &hit).expect("a hit of this scene");
         let d = r.dir.normalize();
         let n = if s.geometric_normal.dot(d) > 0.0 {
             -s.geometric_normal
@@ -157,7 +157,7 @@ fn render(
     backend: Backend,
     width: PacketWidth,
 ) -> Vec<u8> {
-    let mut r = Renderer::new(threads);
+    let mut r = Renderer::new(threads).expect("a render pool");
     r.set_backend(backend);
     r.set_packet_width(width);
     let s = RenderSettings {

@@ -4,15 +4,14 @@ use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Mat4, Vec2, Vec3};
-use openrt_core::{Camera, Material, PointLight};
+use openrt_core::{Camera, MAX_IMAGE_SIDE, Material, PointLight};
 
 use super::keyframes::{RotKey, Tcb, Track, VecKey};
 use super::model::{AffCounts, AffMaterial, AffMesh, AffScene, AnimNode, AnimatedTriangle, AnimationRange};
 use super::tokens::{Token, TokenStream};
 use crate::SceneError;
+use crate::limits::{MAX_BLOCK_NESTING, MAX_HEADER_COUNT, MAX_SCENE_TRIANGLES};
 
-/// Largest count accepted in a `vertices`, `triangles`, `p`, `tpa` or key header.
-const MAX_COUNT: usize = 50_000_000;
 /// Segments around a tessellated cone or sphere.
 const SEGMENTS: usize = 16;
 
@@ -45,6 +44,8 @@ pub fn parse_aff(path: &Path) -> Result<AffScene, SceneError> {
         xform: vec![Mat4::IDENTITY],
         node: None,
         names: HashSet::new(),
+        nesting: 0,
+        triangles: 0,
     };
     p.commands(false)?;
     p.scene.counts.animated_node_names = p.names.len();
@@ -64,6 +65,10 @@ struct Parser {
     xform: Vec<Mat4>,
     node: Option<usize>,
     names: HashSet<String>,
+    /// Open `xs`/`x` blocks.
+    nesting: usize,
+    /// Triangles defined so far, animated ones included.
+    triangles: usize,
 }
 
 impl Parser {
@@ -91,7 +96,7 @@ impl Parser {
                 "fm" => self.material_fm()?,
                 "f" => self.material_f()?,
                 "i" => self.include()?,
-                "xs" => self.static_transform()?,
+                "xs" => self.static_transform(&tok)?,
                 "x" => self.animated_node(&tok)?,
                 "k" => self.keyframes()?,
                 "m" => self.mesh(&tok)?,
@@ -148,12 +153,11 @@ impl Parser {
                 }
                 "resolution" => {
                     let t = self.ts.expect("resolution")?;
-                    let w = self.ts.count("width", 16384)?;
-                    let h = self.ts.count("height", 16384)?;
-                    if w == 0 || h == 0 {
-                        return Err(Self::err(&t, "resolution must be at least 1x1"));
-                    }
-                    self.scene.resolution = (w as u32, h as u32);
+                    let w = self.ts.count("width", MAX_IMAGE_SIDE as usize)?;
+                    let h = self.ts.count("height", MAX_IMAGE_SIDE as usize)?;
+                    let (w, h) = (w as u32, h as u32);
+                    openrt_core::check_image_size("resolution", w, h).map_err(|e| Self::err(&t, e.to_string()))?;
+                    self.scene.resolution = (w, h);
                 }
                 _ => return Ok(()),
             }
@@ -271,7 +275,8 @@ impl Parser {
         self.ts.push_file(&path)
     }
 
-    fn static_transform(&mut self) -> Result<(), SceneError> {
+    fn static_transform(&mut self, tok: &Token) -> Result<(), SceneError> {
+        self.enter_block(tok)?;
         let s = self.ts.vec3("xs scale")?;
         let axis = self.ts.vec3("xs rotation axis")?;
         let angle = self.ts.number("xs rotation angle")?;
@@ -285,10 +290,12 @@ impl Parser {
         self.xform.push(m);
         self.commands(true)?;
         self.xform.pop();
+        self.nesting -= 1;
         Ok(())
     }
 
     fn animated_node(&mut self, tok: &Token) -> Result<(), SceneError> {
+        self.enter_block(tok)?;
         let name = self.ts.expect("node name")?;
         if name.text == "{" {
             return Err(Self::err(tok, "'x' needs a name before '{'"));
@@ -309,6 +316,7 @@ impl Parser {
         );
         self.commands(true)?;
         (self.xform, self.node) = saved;
+        self.nesting -= 1;
         Ok(())
     }
 
@@ -321,8 +329,8 @@ impl Parser {
             match t.text.as_str() {
                 "}" => break,
                 "transl" | "scale" => {
-                    let n = self.ts.count("key count", MAX_COUNT)?;
-                    let mut keys = Vec::with_capacity(n);
+                    let n = self.ts.count("key count", MAX_HEADER_COUNT)?;
+                    let mut keys = Vec::with_capacity(self.ts.capacity_for(n));
                     for _ in 0..n {
                         let time = self.ts.number("key time")?;
                         let value = self.ts.vec3("key value")?;
@@ -340,8 +348,8 @@ impl Parser {
                     }
                 }
                 "rot" => {
-                    let n = self.ts.count("key count", MAX_COUNT)?;
-                    let mut keys = Vec::with_capacity(n);
+                    let n = self.ts.count("key count", MAX_HEADER_COUNT)?;
+                    let mut keys = Vec::with_capacity(self.ts.capacity_for(n));
                     for _ in 0..n {
                         let time = self.ts.number("key time")?;
                         let axis = self.ts.vec3("rotation axis")?;
@@ -394,12 +402,37 @@ impl Parser {
     }
 
     /// Adds a triangle under the current transform.
-    fn emit(&mut self, tri: [Vec3; 3], n: Option<[Vec3; 3]>, uv: Option<[Vec2; 3]>, material: usize) {
+    fn emit(&mut self, tri: [Vec3; 3], n: Option<[Vec3; 3]>, uv: Option<[Vec2; 3]>, material: usize) -> Result<(), SceneError> {
+        self.count_triangle()?;
         let m = *self.xform.last().expect("transform stack");
         let nm = Mat3::from_mat4(m).inverse().transpose();
         let tri = tri.map(|v| m.transform_point3(v));
         let n = n.map(|n| n.map(|v| nm * v)).filter(|n| n.iter().all(|v| v.is_finite()));
         self.current_mesh().push(tri, n, uv, material);
+        Ok(())
+    }
+
+    /// Counts one more triangle against [`MAX_SCENE_TRIANGLES`].
+    fn count_triangle(&mut self) -> Result<(), SceneError> {
+        self.triangles += 1;
+        if self.triangles > MAX_SCENE_TRIANGLES {
+            return Err(self.ts.error_at_last(format!(
+                "the scene defines more than {MAX_SCENE_TRIANGLES} triangles (MAX_SCENE_TRIANGLES)"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Enters an `xs` or `x` block, checking [`MAX_BLOCK_NESTING`].
+    fn enter_block(&mut self, tok: &Token) -> Result<(), SceneError> {
+        self.nesting += 1;
+        if self.nesting > MAX_BLOCK_NESTING {
+            return Err(Self::err(
+                tok,
+                format!("blocks nest deeper than {MAX_BLOCK_NESTING} levels (MAX_BLOCK_NESTING)"),
+            ));
+        }
+        Ok(())
     }
 
     fn mesh(&mut self, tok: &Token) -> Result<(), SceneError> {
@@ -413,19 +446,19 @@ impl Parser {
                 .expect("mesh section ('vertices', 'normals', 'texturecoords', 'triangles')")?;
             match t.text.as_str() {
                 "vertices" => {
-                    let n = self.ts.count("vertex count", MAX_COUNT)?;
+                    let n = self.ts.count("vertex count", MAX_HEADER_COUNT)?;
                     vertices = (0..n).map(|_| self.ts.vec3("vertex")).collect::<Result<_, _>>()?;
                     have_vertices = true;
                 }
                 "normals" => {
-                    let n = self.ts.count("normal count", MAX_COUNT)?;
+                    let n = self.ts.count("normal count", MAX_HEADER_COUNT)?;
                     normals = Some((0..n).map(|_| self.ts.vec3("normal")).collect::<Result<_, _>>()?);
                 }
                 "texturecoords" => {
-                    let n = self.ts.count("texture coordinate count", MAX_COUNT)?;
+                    let n = self.ts.count("texture coordinate count", MAX_HEADER_COUNT)?;
                     let file = self.ts.expect("texture file name")?;
                     texture = Some(self.texture(&file.text));
-                    let mut list = Vec::with_capacity(n);
+                    let mut list = Vec::with_capacity(self.ts.capacity_for(n));
                     for _ in 0..n {
                         list.push(Vec2::new(self.ts.number("u")?, self.ts.number("v")?));
                     }
@@ -435,7 +468,7 @@ impl Parser {
                     if !have_vertices {
                         return Err(Self::err(&t, "mesh 'triangles' before 'vertices'"));
                     }
-                    let n = self.ts.count("triangle count", MAX_COUNT)?;
+                    let n = self.ts.count("triangle count", MAX_HEADER_COUNT)?;
                     let material = self.material(texture);
                     for _ in 0..n {
                         let mut idx = |what: &str, len: usize| -> Result<[usize; 3], SceneError> {
@@ -464,7 +497,7 @@ impl Parser {
                         let tri = vi.map(|i| vertices[i]);
                         let n = ni.map(|ni| ni.map(|i| normals.as_ref().expect("normals")[i]));
                         let uv = ti.map(|ti| ti.map(|i| uvs.as_ref().expect("uvs")[i]));
-                        self.emit(tri, n, uv, material);
+                        self.emit(tri, n, uv, material)?;
                     }
                     self.scene.counts.mesh_triangles += n;
                     self.scene.counts.mesh_instances += 1;
@@ -481,9 +514,9 @@ impl Parser {
     }
 
     fn polygon(&mut self, with_normals: bool) -> Result<(), SceneError> {
-        let n = self.ts.count("polygon vertex count", MAX_COUNT)?;
-        let mut vs = Vec::with_capacity(n);
-        let mut ns = Vec::with_capacity(n);
+        let n = self.ts.count("polygon vertex count", MAX_HEADER_COUNT)?;
+        let mut vs = Vec::with_capacity(self.ts.capacity_for(n));
+        let mut ns = Vec::with_capacity(self.ts.capacity_for(n));
         for _ in 0..n {
             vs.push(self.ts.vec3("polygon vertex")?);
             if with_normals {
@@ -493,7 +526,7 @@ impl Parser {
         let material = self.material(None);
         for i in 1..n.saturating_sub(1) {
             let normals = with_normals.then(|| [ns[0], ns[i], ns[i + 1]]);
-            self.emit([vs[0], vs[i], vs[i + 1]], normals, None, material);
+            self.emit([vs[0], vs[i], vs[i + 1]], normals, None, material)?;
         }
         self.scene.counts.polygons += 1;
         Ok(())
@@ -511,7 +544,7 @@ impl Parser {
             uv[k] = Vec2::new(self.ts.number("u")?, self.ts.number("v")?);
         }
         let material = self.material(texture);
-        self.emit(v, with_normals.then_some(n), Some(uv), material);
+        self.emit(v, with_normals.then_some(n), Some(uv), material)?;
         self.scene.counts.textured_triangles += 1;
         Ok(())
     }
@@ -538,8 +571,8 @@ impl Parser {
             let n0 = (r0 * h + dir * (rb - ra)).normalize_or_zero();
             let n1 = (r1 * h + dir * (rb - ra)).normalize_or_zero();
             let (b0, b1, a0, a1) = (base + r0 * rb, base + r1 * rb, apex + r0 * ra, apex + r1 * ra);
-            self.emit([b0, b1, a1], Some([n0, n1, n1]), None, material);
-            self.emit([b0, a1, a0], Some([n0, n1, n0]), None, material);
+            self.emit([b0, b1, a1], Some([n0, n1, n1]), None, material)?;
+            self.emit([b0, a1, a0], Some([n0, n1, n0]), None, material)?;
         }
         self.scene.counts.cones += 1;
         Ok(())
@@ -560,7 +593,7 @@ impl Parser {
                 let q = [p(i, j), p(i, j + 1), p(i + 1, j + 1), p(i + 1, j)];
                 for t in [[0, 1, 2], [0, 2, 3]] {
                     let n = t.map(|k| q[k]);
-                    self.emit(n.map(|v| c + v * r), Some(n), None, material);
+                    self.emit(n.map(|v| c + v * r), Some(n), None, material)?;
                 }
             }
         }
@@ -574,19 +607,20 @@ impl Parser {
             .text
             .parse()
             .ok()
-            .filter(|&n| (1..=MAX_COUNT).contains(&n))
+            .filter(|&n| (1..=MAX_HEADER_COUNT).contains(&n))
             .ok_or_else(|| {
                 Self::err(
                     &head,
                     format!("tpa needs a sample count of at least 1, found '{}'", head.text),
                 )
             })?;
+        self.count_triangle()?;
         let m = *self.xform.last().expect("transform stack");
         let nm = Mat3::from_mat4(m).inverse().transpose();
         let mut tri = AnimatedTriangle {
-            times: Vec::with_capacity(n),
-            vertices: Vec::with_capacity(n),
-            normals: Vec::with_capacity(n),
+            times: Vec::with_capacity(self.ts.capacity_for(n)),
+            vertices: Vec::with_capacity(self.ts.capacity_for(n)),
+            normals: Vec::with_capacity(self.ts.capacity_for(n)),
             material: self.material(None),
         };
         for _ in 0..n {

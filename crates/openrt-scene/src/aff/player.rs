@@ -218,7 +218,11 @@ fn define(
     mesh: &AffMesh,
     materials: &[MaterialId],
 ) -> Result<(), openrt_core::CoreError> {
-    ctx.begin_object(id)?;
+    ctx.define_object(id, |ctx| define_mesh(ctx, mesh, materials))?;
+    Ok(())
+}
+
+fn define_mesh(ctx: &mut Context, mesh: &AffMesh, materials: &[MaterialId]) -> Result<(), openrt_core::CoreError> {
     let mut current = None;
     for i in 0..mesh.len() {
         material_run(ctx, &mut current, materials[mesh.materials[i]])?;
@@ -241,7 +245,6 @@ fn define(
     if current.is_some() {
         ctx.end()?;
     }
-    ctx.end_object()?;
     Ok(())
 }
 
@@ -252,7 +255,16 @@ fn define_animated(
     materials: &[MaterialId],
     time: f32,
 ) -> Result<(), openrt_core::CoreError> {
-    ctx.begin_object(id)?;
+    ctx.define_object(id, |ctx| define_animated_mesh(ctx, scene, materials, time))?;
+    Ok(())
+}
+
+fn define_animated_mesh(
+    ctx: &mut Context,
+    scene: &AffScene,
+    materials: &[MaterialId],
+    time: f32,
+) -> Result<(), openrt_core::CoreError> {
     let mut current = None;
     for tri in &scene.animated {
         material_run(ctx, &mut current, materials[tri.material])?;
@@ -270,6 +282,5 @@ fn define_animated(
     if current.is_some() {
         ctx.end()?;
     }
-    ctx.end_object()?;
     Ok(())
 }

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
 use crate::SceneError;
+use crate::limits::{MAX_INCLUDE_DEPTH, MAX_INCLUDES, read_file};
 
 /// One word of the input.
 #[derive(Clone, Debug)]
@@ -56,8 +57,6 @@ pub(crate) fn tokenize(bytes: &[u8], file: &Rc<PathBuf>) -> Vec<Token> {
     out
 }
 
-/// Deepest include nesting accepted (guards against include cycles).
-pub(crate) const MAX_INCLUDE_DEPTH: usize = 32;
 
 /// A stack of token streams: the main file and the files it includes.
 pub(crate) struct TokenStream {
@@ -65,6 +64,8 @@ pub(crate) struct TokenStream {
     /// The last token handed out (for errors at end of input).
     last: Option<Token>,
     root: PathBuf,
+    /// Include files pushed so far.
+    includes: usize,
 }
 
 impl TokenStream {
@@ -73,6 +74,7 @@ impl TokenStream {
             stack: Vec::new(),
             last: None,
             root: path.to_path_buf(),
+            includes: 0,
         };
         s.push_file(path)?;
         Ok(s)
@@ -82,17 +84,32 @@ impl TokenStream {
     pub fn push_file(&mut self, path: &Path) -> Result<(), SceneError> {
         if self.stack.len() >= MAX_INCLUDE_DEPTH {
             return Err(self.error_at_last(format!(
-                "includes nest deeper than {MAX_INCLUDE_DEPTH} files (an include cycle?) at {}",
+                "includes nest deeper than {MAX_INCLUDE_DEPTH} files (MAX_INCLUDE_DEPTH; an include cycle?) at {}",
                 path.display()
             )));
         }
-        let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        if self.includes > MAX_INCLUDES {
+            return Err(self.error_at_last(format!(
+                "more than {MAX_INCLUDES} includes (MAX_INCLUDES) at {}",
+                path.display()
+            )));
+        }
+        self.includes += 1;
+        let bytes = read_file(path)?;
         let file = Rc::new(path.to_path_buf());
         self.stack.push((tokenize(&bytes, &file), 0));
         Ok(())
+    }
+
+    /// Tokens not handed out yet, in all open files.
+    pub fn remaining(&self) -> usize {
+        self.stack.iter().map(|(toks, pos)| toks.len() - pos).sum()
+    }
+
+    /// The capacity to reserve for `n` items read from here: never more than
+    /// the tokens left, since every item takes at least one.
+    pub fn capacity_for(&self, n: usize) -> usize {
+        n.min(self.remaining())
     }
 
     pub fn peek(&mut self) -> Option<&Token> {
