@@ -123,7 +123,9 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                     } else {
                         // The old pool goes first, so its threads are not counted twice.
                         renderer = None;
-                        Renderer::new(threads).map(|r| renderer = Some(r)).map_err(|e| e.to_string())
+                        Renderer::new(threads)
+                            .map(|r| renderer = Some(r))
+                            .map_err(|e| e.to_string())
                     };
                     match (pool, renderer.as_mut()) {
                         (Err(e), _) => Reply::Error(e),

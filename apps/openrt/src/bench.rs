@@ -240,14 +240,17 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), Stri
     for block in primary.chunks(lanes) {
         for light in &env.lights {
             for r in block {
-                let out = scene.intersect(r).and_then(|h| scene.surface(r, &h).ok()).map_or(r.origin, |s| {
-                    let n = if s.geometric_normal.dot(r.dir) > 0.0 {
-                        -s.geometric_normal
-                    } else {
-                        s.geometric_normal
-                    };
-                    offset_ray_origin(s.point, n, s.error_scale)
-                });
+                let out = scene
+                    .intersect(r)
+                    .and_then(|h| scene.surface(r, &h).ok())
+                    .map_or(r.origin, |s| {
+                        let n = if s.geometric_normal.dot(r.dir) > 0.0 {
+                            -s.geometric_normal
+                        } else {
+                            s.geometric_normal
+                        };
+                        offset_ray_origin(s.point, n, s.error_scale)
+                    });
                 shadow.push(Ray::new(out, light.position - out, 0.0, 1.0 - 1e-4));
             }
         }

@@ -12,6 +12,9 @@ use std::process::ExitCode;
 
 mod bench;
 
+/// Most frames `openrt bench --frames` samples per scene.
+const MAX_BENCH_FRAMES: usize = 1000;
+
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use openrt_accel::BuilderKind;
@@ -248,6 +251,11 @@ fn run(cli: Cli) -> Result<(), String> {
             if threads.contains(&0) || frames == 0 || width < 4 || height < 4 {
                 return Err("bench: threads and frames must be at least 1, the image at least 4x4".into());
             }
+            if frames > MAX_BENCH_FRAMES {
+                return Err(format!(
+                    "bench --frames {frames}: at most {MAX_BENCH_FRAMES} frames are sampled (MAX_BENCH_FRAMES)"
+                ));
+            }
             let command = std::env::args()
                 .map(|a| if a.contains(' ') { format!("'{a}'") } else { a })
                 .collect::<Vec<_>>()
@@ -340,7 +348,15 @@ mod tests {
         assert_eq!(frame_range(Some("2..=5"), 10).unwrap(), 2..6);
         assert_eq!(frame_range(Some("..3"), 10).unwrap(), 0..3);
         assert_eq!(frame_range(Some("7.."), 10).unwrap(), 7..10);
-        for bad in ["5..2", "a..b", "3", "0..11", "0..=4294967295", "-1..2", "0..99999999999"] {
+        for bad in [
+            "5..2",
+            "a..b",
+            "3",
+            "0..11",
+            "0..=4294967295",
+            "-1..2",
+            "0..99999999999",
+        ] {
             assert!(frame_range(Some(bad), 10).is_err(), "{bad}");
         }
     }

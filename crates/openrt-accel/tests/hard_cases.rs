@@ -390,5 +390,8 @@ fn negative_t_min_reports_no_hit_at_or_behind_the_origin() {
         // A ray that has triangles behind its origin.
         behind += usize::from(kernel_hits(&tris, &Ray::new(o, -d, 0.0, f32::INFINITY)) > 0);
     }
-    assert!(behind > 500, "the sweep must put triangles behind the origins ({behind})");
+    assert!(
+        behind > 500,
+        "the sweep must put triangles behind the origins ({behind})"
+    );
 }

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use crate::context::{InstanceSlot, Promotion};
 use crate::instance::InstanceRecord;
+use crate::limits::{MAX_COORDINATE, within_coordinate_limit};
 use crate::object::ObjectGeometry;
 use crate::{Context, CoreError, InstanceId, ObjectId, Scene};
 
@@ -264,6 +265,28 @@ impl Context {
                 todo.iter().map(record).collect()
             })
         };
+        // An instance whose world box leaves the coordinate range (a large
+        // object under a large scale) could not be hit reliably: refuse it.
+        if let Some(r) = records.iter().find(|r| {
+            let b = r.world_bounds;
+            let inside = within_coordinate_limit(b.min) && within_coordinate_limit(b.max);
+            !r.geometry.tree.bounds().is_empty() && !inside
+        }) {
+            let b = r.world_bounds;
+            return Err(CoreError::Limit {
+                call: "commit",
+                what: format!(
+                    "instance {} of object {}: world box {}..{}, largest |coordinate|",
+                    r.id, r.object, b.min, b.max
+                ),
+                value: if b.min.is_finite() && b.max.is_finite() {
+                    b.min.abs().max(b.max.abs()).max_element() as u64
+                } else {
+                    u64::MAX
+                },
+                limit: MAX_COORDINATE as u64,
+            });
+        }
         let t0 = Instant::now();
         // NOTE: the BSP is a function of the box list alone (leaf items are
         // indices into it), so an unchanged list, compared bit for bit,
@@ -400,5 +423,142 @@ impl Context {
             .geometry
             .as_ref()
             .map(|g| g.builder()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use crate::{Context, CoreError, PrimitiveKind};
+
+    fn tri(ctx: &mut Context, id: crate::ObjectId, z: f32) {
+        ctx.begin_object(id).unwrap();
+        ctx.begin(PrimitiveKind::Triangles).unwrap();
+        for p in [
+            Vec3::new(-1.0, -1.0, z),
+            Vec3::new(1.0, -1.0, z),
+            Vec3::new(0.0, 1.0, z),
+        ] {
+            ctx.vertex(p).unwrap();
+        }
+        ctx.end().unwrap();
+        ctx.end_object().unwrap();
+    }
+
+    fn t_at(ctx: &Context, x: f32) -> Option<f32> {
+        let r = openrt_accel::Ray::infinite(Vec3::new(x, 0.0, 10.0), -Vec3::Z);
+        ctx.scene().intersect(&r).map(|h| h.t)
+    }
+
+    #[test]
+    fn a_failing_build_leaves_everything_as_it_was() {
+        let mut ctx = Context::new();
+        let (a, b) = (ctx.gen_object(), ctx.gen_object());
+        tri(&mut ctx, a, 0.0);
+        tri(&mut ctx, b, 1.0);
+        ctx.instantiate(a).unwrap();
+        ctx.translate(Vec3::X * 5.0).unwrap();
+        ctx.instantiate(b).unwrap();
+        ctx.load_identity();
+        ctx.commit().unwrap();
+        let before = ctx.scene();
+        // Redefine both; the second build fails.
+        tri(&mut ctx, a, 2.0);
+        tri(&mut ctx, b, 3.0);
+        ctx.fail_builds = Some(1);
+        let e = ctx.commit().unwrap_err();
+        assert!(matches!(e, CoreError::Accel { call: "commit", .. }), "{e}");
+        assert!(
+            std::sync::Arc::ptr_eq(&before, &ctx.scene()),
+            "the old scene stays current"
+        );
+        assert_eq!(ctx.frame, before.frame());
+        assert!(
+            ctx.objects.iter().all(|s| s.pending.is_some()),
+            "both definitions are still pending"
+        );
+        assert_eq!(ctx.objects[0].version, 1);
+        // Without the failure, the same commit applies both definitions.
+        ctx.fail_builds = None;
+        let stats = ctx.commit().unwrap();
+        assert_eq!(stats.builds.len(), 2);
+        assert_eq!(t_at(&ctx, 0.0), Some(8.0));
+        assert_eq!(t_at(&ctx, 5.0), Some(7.0));
+    }
+
+    #[test]
+    fn a_failed_promotion_is_reported_once_and_not_retried() {
+        let mut ctx = Context::new();
+        ctx.set_promote_after(Some(1));
+        let a = ctx.gen_object();
+        tri(&mut ctx, a, 0.0);
+        ctx.instantiate(a).unwrap();
+        ctx.commit().unwrap();
+        tri(&mut ctx, a, 0.5); // redefined: fast tree
+        ctx.commit().unwrap();
+        ctx.fail_promotions = true;
+        let started = ctx.commit().unwrap();
+        assert_eq!(started.promotions_started, vec![a]);
+        ctx.wait_for_promotions();
+        let failed = ctx.commit().unwrap();
+        assert_eq!(failed.promotions_failed.len(), 1);
+        assert!(
+            failed.promotions_failed[0].1.contains("injected"),
+            "{:?}",
+            failed.promotions_failed
+        );
+        assert!(ctx.promotion_failure(a).unwrap().is_some());
+        for _ in 0..5 {
+            let s = ctx.commit().unwrap();
+            assert!(
+                s.promotions_started.is_empty() && s.promotions_failed.is_empty(),
+                "{s:?}"
+            );
+        }
+        assert_eq!(ctx.object_builder(a).unwrap(), Some(openrt_accel::BuilderKind::Fast));
+        assert_eq!(t_at(&ctx, 0.0), Some(9.5), "the fast tree stays in use");
+        // A redefinition clears the failure and promotes again.
+        ctx.fail_promotions = false;
+        tri(&mut ctx, a, 0.0);
+        ctx.commit().unwrap();
+        assert!(ctx.promotion_failure(a).unwrap().is_none());
+        assert_eq!(ctx.commit().unwrap().promotions_started, vec![a]);
+        ctx.wait_for_promotions();
+        assert_eq!(ctx.commit().unwrap().promotions_swapped, vec![a]);
+    }
+
+    #[test]
+    fn handles_are_never_issued_twice_when_a_generation_would_wrap() {
+        let mut ctx = Context::new();
+        let a = ctx.gen_object();
+        tri(&mut ctx, a, 0.0);
+        let i = ctx.instantiate(a).unwrap();
+        // Fast-forward both slots to the last generation.
+        ctx.objects[0].generation = u32::MAX;
+        ctx.instances[0].generation = u32::MAX;
+        ctx.instances[0].object.generation = u32::MAX;
+        let a = crate::ObjectId {
+            generation: u32::MAX,
+            ..a
+        };
+        let i = crate::InstanceId {
+            generation: u32::MAX,
+            ..i
+        };
+        ctx.remove_instance(i).unwrap();
+        ctx.delete_object(a).unwrap();
+        // The slots are retired: new handles take new slots.
+        let b = ctx.gen_object();
+        assert_ne!(b.index(), a.index());
+        tri(&mut ctx, b, 0.0);
+        let j = ctx.instantiate(b).unwrap();
+        assert_ne!(j.index(), i.index());
+        assert!(ctx.instance(i).is_err() && ctx.object_builder(a).is_err());
+        // Ordinary reuse still works.
+        ctx.remove_instance(j).unwrap();
+        let k = ctx.instantiate(b).unwrap();
+        assert_eq!((k.index(), k.generation()), (j.index(), j.generation() + 1));
+        ctx.commit().unwrap();
     }
 }

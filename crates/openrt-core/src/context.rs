@@ -6,6 +6,7 @@ use glam::{Affine3A, Mat3, Mat4, Vec2, Vec3};
 use openrt_accel::{Triangle, is_valid_triangle};
 
 use crate::instance::check_transform;
+use crate::limits::{MAX_COORDINATE, within_coordinate_limit};
 use crate::matrix_stack::MatrixStack;
 use crate::object::{ObjectGeometry, ObjectMesh};
 use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind, Scene, Texture, TextureId};
@@ -22,10 +23,7 @@ pub(crate) enum Promotion {
         result: Result<Arc<ObjectGeometry>, String>,
     },
     /// Reported once by a commit; not retried for this version.
-    Failed {
-        version: u64,
-        reason: String,
-    },
+    Failed { version: u64, reason: String },
 }
 
 impl Promotion {
@@ -394,6 +392,14 @@ impl Context {
             return Err(CoreError::NonFinite {
                 call: "vertex",
                 what: format!("transformed position {wp}"),
+            });
+        }
+        if !within_coordinate_limit(wp) {
+            return Err(CoreError::Limit {
+                call: "vertex",
+                what: format!("position {wp}: largest |coordinate|"),
+                value: wp.abs().max_element() as u64,
+                limit: MAX_COORDINATE as u64,
             });
         }
         d.vertices.push(Vertex { p: wp, n, uv });

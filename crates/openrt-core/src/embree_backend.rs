@@ -106,7 +106,9 @@ impl EmbreeScene {
     /// Closest hits of a packet (rtcIntersect4/8/16).
     #[must_use]
     pub fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N] {
-        self.tl().intersect_packet(rays, lanes).map(|h| h.map(|h| scene_hit(self.frame, h)))
+        self.tl()
+            .intersect_packet(rays, lanes)
+            .map(|h| h.map(|h| scene_hit(self.frame, h)))
     }
 
     /// The blocked lanes of a packet (rtcOccluded4/8/16).

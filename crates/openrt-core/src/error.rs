@@ -160,7 +160,9 @@ pub enum CoreError {
         limit: u64,
     },
     /// A hit given to [`crate::Scene::surface`] that another scene found.
-    #[error("surface: the hit (instance {instance}, triangle {prim}) was found in frame {hit_frame}, not in this scene (frame {scene_frame}), or names a triangle it does not have")]
+    #[error(
+        "surface: the hit (instance {instance}, triangle {prim}) was found in frame {hit_frame}, not in this scene (frame {scene_frame}), or names a triangle it does not have"
+    )]
     ForeignHit {
         /// The hit's frame.
         hit_frame: u64,

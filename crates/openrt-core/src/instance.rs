@@ -119,7 +119,9 @@ pub(crate) fn check_transform(call: &'static str, m: &Mat4) -> Result<Affine3A, 
     // longest column. Uniform scales of any size pass.
     let longest = lin.x_axis.length().max(lin.y_axis.length()).max(lin.z_axis.length());
     let conditioning = det.abs() / (longest * longest * longest);
-    if det == 0.0 || !det.is_finite() || !(conditioning >= MIN_TRANSFORM_CONDITIONING) {
+    // NOTE: a NaN conditioning is refused too.
+    let conditioned = conditioning >= MIN_TRANSFORM_CONDITIONING;
+    if det == 0.0 || !det.is_finite() || !conditioned {
         return Err(CoreError::SingularTransform {
             call,
             det,

@@ -100,8 +100,8 @@ pub use ids::{InstanceId, MaterialId, ObjectId, TextureId};
 pub use instance::{InstanceRecord, MIN_TRANSFORM_CONDITIONING};
 pub use light::{Environment, PointLight};
 pub use limits::{
-    MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SHADE_DEPTH, MAX_THREADS, RENDER_STACK_BYTES, check_depth, check_image_size,
-    check_threads,
+    MAX_COORDINATE, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SHADE_DEPTH, MAX_THREADS, RENDER_STACK_BYTES, check_depth,
+    check_image_size, check_threads,
 };
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};

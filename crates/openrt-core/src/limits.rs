@@ -24,6 +24,19 @@ pub const MAX_THREADS: usize = 256;
 /// this leaves a wide margin.
 pub const RENDER_STACK_BYTES: usize = 8 << 20;
 
+/// Largest |coordinate| of a vertex in its object, and of an instance's
+/// world box. The watertight triangle test multiplies three coordinates
+/// (relative to the ray origin); below this bound the products stay far
+/// from f32 overflow (2^128 ~ 3.4e38), and boxes stay finite after
+/// transforms.
+pub const MAX_COORDINATE: f32 = 1e12;
+
+/// `true` when every component of `p` lies within [`MAX_COORDINATE`].
+#[must_use]
+pub fn within_coordinate_limit(p: glam::Vec3) -> bool {
+    p.abs().max_element() <= MAX_COORDINATE
+}
+
 /// Checks an image size against [`MAX_IMAGE_SIDE`] and [`MAX_IMAGE_PIXELS`];
 /// `call` names the caller in the error.
 pub fn check_image_size(call: &'static str, width: u32, height: u32) -> Result<(), CoreError> {

@@ -65,7 +65,9 @@ fn rays_aimed_inside_squashed_triangles_agree_with_the_oracle() {
                 for t in &world {
                     // From 3 units along the normal to the centre of the triangle.
                     let c = (t[0] + t[1] + t[2]) / 3.0;
-                    let Some(n) = (t[1] - t[0]).cross(t[2] - t[0]).try_normalize() else { continue };
+                    let Some(n) = (t[1] - t[0]).cross(t[2] - t[0]).try_normalize() else {
+                        continue;
+                    };
                     let from = c + n * 3.0 + Vec3::new(0.01, 0.02, 0.0);
                     let ray = Ray::new(from, c - from, 0.0, f32::INFINITY);
                     let hit = scene.intersect(&ray).map(|h| Hit {

@@ -14,8 +14,8 @@
 pub mod aff;
 mod builtin;
 mod error;
-mod limits;
 pub mod generate;
+mod limits;
 mod loader;
 mod player;
 mod ron_format;

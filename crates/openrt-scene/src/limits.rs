@@ -59,13 +59,17 @@ pub(crate) fn read_file(path: &std::path::Path) -> Result<Vec<u8>, crate::SceneE
         source,
     };
     let file = std::fs::File::open(path).map_err(io)?;
+    let too_big = || crate::SceneError::Invalid {
+        path: path.to_path_buf(),
+        what: format!("the file is larger than the limit of {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES)"),
+    };
+    if file.metadata().map_err(io)?.len() > MAX_FILE_BYTES {
+        return Err(too_big());
+    }
     let mut bytes = Vec::new();
     file.take(MAX_FILE_BYTES + 1).read_to_end(&mut bytes).map_err(io)?;
     if bytes.len() as u64 > MAX_FILE_BYTES {
-        return Err(crate::SceneError::Invalid {
-            path: path.to_path_buf(),
-            what: format!("the file is larger than the limit of {MAX_FILE_BYTES} bytes (MAX_FILE_BYTES)"),
-        });
+        return Err(too_big());
     }
     Ok(bytes)
 }

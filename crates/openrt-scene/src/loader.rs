@@ -13,12 +13,12 @@ use openrt_core::{
 use rand::{Rng, SeedableRng};
 
 use crate::SceneError;
+use crate::aff::{AffPlayer, AnimationRange, RotKey, Tcb, Track, VecKey, interpolate_vec, parse_aff};
+use crate::generate::{animart, heightfield, terrain_height, tree};
 use crate::limits::{
     MAX_ANIMART_TRIANGLES, MAX_FRAMES, MAX_SCENE_TRIANGLES, MAX_SPHERE_SEGMENTS, MAX_TERRAIN_GRID, MAX_TREE_TRIANGLES,
     MAX_TREES, read_file,
 };
-use crate::aff::{AffPlayer, AnimationRange, RotKey, Tcb, Track, VecKey, interpolate_vec, parse_aff};
-use crate::generate::{animart, heightfield, terrain_height, tree};
 use crate::ron_format::{GeneratorDesc, InstanceKeys, ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp};
 use crate::shapes::{emit_box, emit_sphere};
 use crate::texture_io::load_texture;
@@ -180,7 +180,9 @@ fn check_times(what: &str, times: impl Iterator<Item = f32>) -> Result<(), Strin
 fn check_vec_keys(what: &str, keys: &[(f32, [f32; 3])]) -> Result<(), String> {
     check_times(what, keys.iter().map(|k| k.0))?;
     match keys.iter().find(|(_, v)| !Vec3::from_array(*v).is_finite()) {
-        Some((t, v)) => Err(format!("{what}: the key at time {t} has the value {v:?}, which is not finite")),
+        Some((t, v)) => Err(format!(
+            "{what}: the key at time {t} has the value {v:?}, which is not finite"
+        )),
         None => Ok(()),
     }
 }
@@ -209,7 +211,10 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
     let bytes = read_file(path)?;
     let text = String::from_utf8(bytes).map_err(|e| SceneError::Invalid {
         path: path.to_path_buf(),
-        what: format!("not UTF-8 text (byte {} is not valid UTF-8)", e.utf8_error().valid_up_to()),
+        what: format!(
+            "not UTF-8 text (byte {} is not valid UTF-8)",
+            e.utf8_error().valid_up_to()
+        ),
     })?;
     let file = parse_ron(&text, path)?;
     if let Some(b) = &file.bart {
@@ -219,17 +224,19 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
                 what: "a BART wrapper ('bart') cannot also define objects, instances or generators".into(),
             });
         }
+        if let Some(n) = b.animart_triangles
+            && n > MAX_ANIMART_TRIANGLES
+        {
+            return Err(SceneError::Invalid {
+                path: path.to_path_buf(),
+                what: format!(
+                    "animart_triangles {n} is beyond the limit of {MAX_ANIMART_TRIANGLES} (MAX_ANIMART_TRIANGLES)"
+                ),
+            });
+        }
         let aff = crate::aff::bart_dir().join(&b.file);
         let mut scene = parse_aff(&aff)?;
         if let Some(n) = b.animart_triangles {
-            if n > MAX_ANIMART_TRIANGLES {
-                return Err(SceneError::Invalid {
-                    path: path.to_path_buf(),
-                    what: format!(
-                        "animart_triangles {n} is beyond the limit of {MAX_ANIMART_TRIANGLES} (MAX_ANIMART_TRIANGLES)"
-                    ),
-                });
-            }
             if scene.materials.is_empty() {
                 return Err(SceneError::Invalid {
                     path: aff,
@@ -681,7 +688,12 @@ impl Builder {
                 sway_degrees,
                 seed,
             } => {
-                if !(size.is_finite() && size > 0.0 && height.is_finite() && tree_size.is_finite() && tree_size > 0.0 && sway_degrees.is_finite())
+                if !(size.is_finite()
+                    && size > 0.0
+                    && height.is_finite()
+                    && tree_size.is_finite()
+                    && tree_size > 0.0
+                    && sway_degrees.is_finite())
                     || grid == 0
                 {
                     return Err(self.invalid(format!(
@@ -810,7 +822,9 @@ impl Builder {
                 if count > MAX_SCENE_TRIANGLES {
                     return Err(SceneError::Invalid {
                         path: file.clone(),
-                        what: format!("{count} triangles is beyond the limit of {MAX_SCENE_TRIANGLES} (MAX_SCENE_TRIANGLES)"),
+                        what: format!(
+                            "{count} triangles is beyond the limit of {MAX_SCENE_TRIANGLES} (MAX_SCENE_TRIANGLES)"
+                        ),
                     });
                 }
                 ctx.begin(PrimitiveKind::Triangles).map_err(&core)?;

@@ -72,7 +72,8 @@ fn frame(player: &mut AffPlayer, f: u32) -> openrt_core::Image {
         mode: RenderMode::Whitted,
         max_depth: 3,
     };
-    Renderer::new(2).expect("a render pool")
+    Renderer::new(2)
+        .expect("a render pool")
         .render(&player.ctx.scene(), &player.env, &player.camera(t), &s)
         .unwrap()
         .0

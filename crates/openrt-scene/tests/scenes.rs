@@ -23,7 +23,8 @@ fn render(scene: &Path, mode: RenderMode) -> Image {
         mode,
         max_depth: 3,
     };
-    Renderer::new(2).expect("a render pool")
+    Renderer::new(2)
+        .expect("a render pool")
         .render(&s.ctx.scene(), &s.env, &s.camera, &settings)
         .unwrap()
         .0

@@ -17,6 +17,11 @@ const SEGMENTS: usize = 16;
 
 /// Reads an AFF file and everything it includes.
 pub fn parse_aff(path: &Path) -> Result<AffScene, SceneError> {
+    parse_aff_limited(path, MAX_SCENE_TRIANGLES)
+}
+
+/// [`parse_aff`] with a triangle limit of `triangle_limit` (tests use a small one).
+pub(crate) fn parse_aff_limited(path: &Path, triangle_limit: usize) -> Result<AffScene, SceneError> {
     let ts = TokenStream::open(path)?;
     let dir = path.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
     let mut p = Parser {
@@ -46,6 +51,7 @@ pub fn parse_aff(path: &Path) -> Result<AffScene, SceneError> {
         names: HashSet::new(),
         nesting: 0,
         triangles: 0,
+        triangle_limit,
     };
     p.commands(false)?;
     p.scene.counts.animated_node_names = p.names.len();
@@ -69,6 +75,8 @@ struct Parser {
     nesting: usize,
     /// Triangles defined so far, animated ones included.
     triangles: usize,
+    /// [`MAX_SCENE_TRIANGLES`] (lower in tests).
+    triangle_limit: usize,
 }
 
 impl Parser {
@@ -402,7 +410,13 @@ impl Parser {
     }
 
     /// Adds a triangle under the current transform.
-    fn emit(&mut self, tri: [Vec3; 3], n: Option<[Vec3; 3]>, uv: Option<[Vec2; 3]>, material: usize) -> Result<(), SceneError> {
+    fn emit(
+        &mut self,
+        tri: [Vec3; 3],
+        n: Option<[Vec3; 3]>,
+        uv: Option<[Vec2; 3]>,
+        material: usize,
+    ) -> Result<(), SceneError> {
         self.count_triangle()?;
         let m = *self.xform.last().expect("transform stack");
         let nm = Mat3::from_mat4(m).inverse().transpose();
@@ -415,9 +429,10 @@ impl Parser {
     /// Counts one more triangle against [`MAX_SCENE_TRIANGLES`].
     fn count_triangle(&mut self) -> Result<(), SceneError> {
         self.triangles += 1;
-        if self.triangles > MAX_SCENE_TRIANGLES {
+        if self.triangles > self.triangle_limit {
             return Err(self.ts.error_at_last(format!(
-                "the scene defines more than {MAX_SCENE_TRIANGLES} triangles (MAX_SCENE_TRIANGLES)"
+                "the scene defines more than {} triangles (MAX_SCENE_TRIANGLES)",
+                self.triangle_limit
             )));
         }
         Ok(())
@@ -637,5 +652,27 @@ impl Parser {
         self.scene.animated.push(tri);
         self.scene.counts.animated_triangles += 1;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_triangle_limit_counts_every_kind_of_triangle() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.aff");
+        // 2 polygon triangles, 2 tt, 1 animated: 5 in all.
+        std::fs::write(
+            &path,
+            "p 4 0 0 0 1 0 0 1 1 0 0 1 0\ntt w.ppm 0 0 0 0 0 1 0 0 1 0 0 1 0 1 0\ntt w.ppm 0 0 1 0 0 1 0 1 1 0 0 1 1 1 0\n\
+             tpa 1 0 0 0 0 0 0 1 1 0 0 0 0 1 0 1 0 0 0 1\n",
+        )
+        .unwrap();
+        assert_eq!(parse_aff_limited(&path, 5).unwrap().static_mesh.len(), 4);
+        let e = parse_aff_limited(&path, 4).unwrap_err().to_string();
+        assert!(e.contains("more than 4 triangles (MAX_SCENE_TRIANGLES)"), "{e}");
+        assert!(e.contains("t.aff:4:"), "names the file and line: {e}");
     }
 }

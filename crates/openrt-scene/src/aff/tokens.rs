@@ -57,7 +57,6 @@ pub(crate) fn tokenize(bytes: &[u8], file: &Rc<PathBuf>) -> Vec<Token> {
     out
 }
 
-
 /// A stack of token streams: the main file and the files it includes.
 pub(crate) struct TokenStream {
     stack: Vec<(Vec<Token>, usize)>,

@@ -1,0 +1,101 @@
+//! Crafted hostile input to the `openrt` command: each must end with exit
+//! status 1 and a one-line error naming the problem, within seconds, never
+//! with a panic, an abort or a hang.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Runs `openrt args`, killing it after 20 s; returns (exit code, stderr).
+fn openrt(args: &[&str], dir: &Path) -> (Option<i32>, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_openrt"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("openrt starts");
+    let start = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            break;
+        }
+        if start.elapsed() > Duration::from_secs(20) {
+            let _ = child.kill();
+            panic!("openrt {args:?} hangs");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().expect("output");
+    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn crafted_inputs_give_errors_not_crashes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let view = "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 0.1\nresolution 32 32\n";
+    let n = 100_000;
+    std::fs::write(
+        d.join("nest.aff"),
+        format!(
+            "{view}{}p 3 0 0 0 1 0 0 0 1 0\n{}",
+            "xs 1 1 1 0 0 1 0 0 0 0 {\n".repeat(n),
+            "}\n".repeat(n)
+        ),
+    )
+    .unwrap();
+    std::fs::write(d.join("res.ron"), "(version: 1, resolution: (4000000000, 4000000000))").unwrap();
+    std::fs::write(
+        d.join("terrain.ron"),
+        "(version: 2, generators: [Terrain(size: 10.0, grid: 4000000000, height: 1.0, trees: 4000000000, \
+         tree_triangles: 4000000000, tree_size: 1.0, sway_degrees: 0.0, seed: 1)])",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("keys.ron"),
+        "(version: 2, objects: { \"b\": Box(min: (0.0, 0.0, 0.0), max: (1.0, 1.0, 1.0)) }, \
+         animation: Some((start: 0.0, end: 1.0, frames: 3)), \
+         instances: [(object: \"b\", keys: Some((translate: [(1.0, (0.0, 0.0, 0.0)), (NaN, (1.0, 0.0, 0.0))])))])",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("anim.ron"),
+        "(version: 2, objects: { \"b\": Box(min: (0.0, 0.0, 0.0), max: (1.0, 1.0, 1.0)) }, \
+         animation: Some((start: 0.0, end: 1.0, frames: 3)), instances: [(object: \"b\")])",
+    )
+    .unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (&["render", "nest.aff", "-o", "a.png"], "MAX_BLOCK_NESTING"),
+        (
+            &[
+                "render", "--depth", "100000", "--width", "8", "--height", "8", "-o", "a.png",
+            ],
+            "depth",
+        ),
+        (
+            &["render", "--width", "1000000", "--height", "1000000", "-o", "a.png"],
+            "image side",
+        ),
+        (&["render", "terrain.ron", "-o", "a.png"], "Terrain"),
+        (&["render", "res.ron", "-o", "a.png"], "resolution"),
+        (&["render", "--threads", "100000000", "-o", "a.png"], "thread count"),
+        (&["render", "--threads", "0", "-o", "a.png"], "thread count"),
+        (&["render", "keys.ron", "-o", "a.png"], "not finite"),
+        (&["play", "anim.ron", "--frames", "0..=4294967295"], "--frames"),
+        (&["play", "anim.ron", "--frames", "2..1"], "--frames"),
+        (&["render", "anim.ron", "--frame", "3", "-o", "a.png"], "--frame 3"),
+        (&["render", "missing.aff", "-o", "a.png"], "missing.aff"),
+        (&["bench", "--frames", "100000000", "--scenes", "slab"], "--frames"),
+    ];
+    for (args, expect) in cases {
+        let (code, err) = openrt(args, d);
+        assert_eq!(code, Some(1), "openrt {args:?}: exit {code:?}, stderr:\n{err}");
+        assert!(err.starts_with("error: "), "openrt {args:?}: {err}");
+        assert!(
+            err.contains(expect),
+            "openrt {args:?}: '{err}' should mention '{expect}'"
+        );
+        assert!(!err.contains("panicked"), "openrt {args:?}: {err}");
+    }
+}
