@@ -36,4 +36,4 @@ pub use ron_format::{
     MaterialDesc, ObjectDesc, SUPPORTED_VERSIONS, SceneFile, TransformOp,
 };
 pub use shapes::{emit_box, emit_sphere};
-pub use texture_io::load_texture;
+pub use texture_io::{decode_texture, load_texture};

@@ -10,13 +10,24 @@ use crate::limits::{MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS};
 
 /// Loads an RGB texture; errors name the texture file and the scene using it.
 pub fn load_texture(texture: &Path, used_by: &Path) -> Result<Texture, SceneError> {
+    let bytes = crate::limits::read_file(texture).map_err(|e| SceneError::Texture {
+        texture: texture.to_path_buf(),
+        path: used_by.to_path_buf(),
+        msg: e.to_string(),
+    })?;
+    decode_texture(&bytes, texture, used_by)
+}
+
+/// Decodes the bytes of a PPM or PNG texture (from `texture`, used by
+/// `used_by`: both only name the files in errors), within
+/// [`MAX_TEXTURE_SIDE`] and [`MAX_TEXTURE_TEXELS`].
+pub fn decode_texture(bytes: &[u8], texture: &Path, used_by: &Path) -> Result<Texture, SceneError> {
     let err = |msg: String| SceneError::Texture {
         texture: texture.to_path_buf(),
         path: used_by.to_path_buf(),
         msg,
     };
-    let bytes = crate::limits::read_file(texture).map_err(|e| err(e.to_string()))?;
-    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| err(format!("cannot read: {e}")))?;
     let mut limits = image::Limits::default();

@@ -10,7 +10,7 @@ use super::keyframes::{RotKey, Tcb, Track, VecKey};
 use super::model::{AffCounts, AffMaterial, AffMesh, AffScene, AnimNode, AnimatedTriangle, AnimationRange};
 use super::tokens::{Token, TokenStream};
 use crate::SceneError;
-use crate::limits::{MAX_BLOCK_NESTING, MAX_HEADER_COUNT, MAX_SCENE_TRIANGLES};
+use crate::limits::{MAX_BLOCK_NESTING, MAX_FRAMES, MAX_HEADER_COUNT, MAX_SCENE_TRIANGLES};
 
 /// Segments around a tessellated cone or sphere.
 const SEGMENTS: usize = 16;
@@ -175,7 +175,7 @@ impl Parser {
     fn animation(&mut self, tok: &Token) -> Result<(), SceneError> {
         let start = self.ts.number("animation start")?;
         let end = self.ts.number("animation end")?;
-        let frames = self.ts.count("frame count", 10_000_000)?;
+        let frames = self.ts.count("frame count", MAX_FRAMES as usize)?;
         if frames == 0 || end < start {
             return Err(Self::err(
                 tok,
