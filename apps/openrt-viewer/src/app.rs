@@ -1,6 +1,7 @@
 //! The viewer's window: image, controls, overlay.
 
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use eframe::egui;
@@ -17,6 +18,8 @@ pub struct Options {
     pub screenshot: Option<PathBuf>,
     pub frames: u32,
     pub threads: usize,
+    /// Set to the error that ends a `--screenshot` run (the exit status).
+    pub failure: Arc<Mutex<Option<String>>>,
 }
 
 // NOTE: the flags are independent UI toggles (playing, looping, following the
@@ -54,6 +57,9 @@ pub struct ViewerApp {
     screenshot: Option<PathBuf>,
     screenshot_after: u32,
     screenshot_requested: bool,
+    failure: Arc<Mutex<Option<String>>>,
+    /// The render thread has stopped (reported once).
+    worker_dead: bool,
     status: String,
 }
 
@@ -61,7 +67,8 @@ impl ViewerApp {
     pub fn new(cc: &eframe::CreationContext<'_>, opts: Options) -> Self {
         let ctx = cc.egui_ctx.clone();
         let worker = Worker::start(move || ctx.request_repaint());
-        worker.tx.send(Request::Open(opts.scene)).expect("render thread");
+        // A send fails only if the render thread is gone: `receive` reports it.
+        let _ = worker.tx.send(Request::Open(opts.scene));
         Self {
             worker,
             dialog: FileDialog::new()
@@ -91,6 +98,8 @@ impl ViewerApp {
             screenshot: opts.screenshot,
             screenshot_after: opts.frames.max(1),
             screenshot_requested: false,
+            failure: opts.failure,
+            worker_dead: false,
             status: String::new(),
         }
     }
@@ -134,8 +143,31 @@ impl ViewerApp {
         }
     }
 
+    /// Shows an error; in screenshot mode it also ends the run with it.
+    fn fail(&mut self, ctx: &egui::Context, e: String) {
+        if self.screenshot.is_some() {
+            eprintln!("error: {e}");
+            *self.failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(e.clone());
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+        self.error = Some(e);
+        self.in_flight = false;
+    }
+
     fn receive(&mut self, ctx: &egui::Context) {
-        while let Ok(reply) = self.worker.rx.try_recv() {
+        loop {
+            let reply = match self.worker.rx.try_recv() {
+                Ok(r) => r,
+                Err(crossbeam::channel::TryRecvError::Empty) => break,
+                Err(crossbeam::channel::TryRecvError::Disconnected) => {
+                    if !self.worker_dead {
+                        self.worker_dead = true;
+                        let why = self.error.take().map_or_else(String::new, |e| format!(" ({e})"));
+                        self.fail(ctx, format!("the render thread has stopped{why}; restart the viewer"));
+                    }
+                    break;
+                }
+            };
             match reply {
                 Reply::Opened(info) => {
                     self.time = info.time_range.0;
@@ -145,10 +177,7 @@ impl ViewerApp {
                     self.error = None;
                     self.dirty = true;
                 }
-                Reply::Error(e) => {
-                    self.error = Some(e);
-                    self.in_flight = false;
-                }
+                Reply::Error(e) => self.fail(ctx, e),
                 Reply::Frame(f) => {
                     self.in_flight = false;
                     self.frames_rendered += 1;
@@ -340,9 +369,10 @@ impl ViewerApp {
             }
         });
         self.dirty |= ui
-            .add(egui::Slider::new(&mut self.depth, 0..=8).text("reflection depth"))
+            .add(egui::Slider::new(&mut self.depth, 0..=openrt_core::MAX_SHADE_DEPTH.min(8)).text("reflection depth"))
             .changed();
-        let max_threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get) * 2;
+        let max_threads =
+            (std::thread::available_parallelism().map_or(1, std::num::NonZero::get) * 2).min(openrt_core::MAX_THREADS);
         self.dirty |= ui
             .add(egui::Slider::new(&mut self.threads, 1..=max_threads).text("threads"))
             .changed();
@@ -446,6 +476,12 @@ impl eframe::App for ViewerApp {
             egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
         });
         egui::CentralPanel::default().show(ui, |ui| {
+            // An error stays in view above the last good frame.
+            if self.texture.is_some()
+                && let Some(e) = &self.error
+            {
+                ui.colored_label(egui::Color32::LIGHT_RED, format!("error: {e}"));
+            }
             let avail = ui.available_size();
             if let Some(tex) = &self.texture {
                 let [w, h] = tex.size().map(|v| v as f32);

@@ -12,6 +12,7 @@ mod orbit;
 mod worker;
 
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 
 use clap::Parser;
 
@@ -35,8 +36,12 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let threads = cli
         .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
-        .max(1);
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get));
+    if let Err(e) = openrt_core::check_threads("--threads", threads) {
+        eprintln!("error: {e}");
+        return std::process::ExitCode::FAILURE;
+    }
+    let failure = Arc::new(Mutex::new(None));
     let options = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_inner_size([1100.0, 700.0])
@@ -48,12 +53,15 @@ fn main() -> std::process::ExitCode {
         screenshot: cli.screenshot,
         frames: cli.frames,
         threads,
+        failure: Arc::clone(&failure),
     };
     match eframe::run_native(
         "OpenRT-rs",
         options,
         Box::new(move |cc| Ok(Box::new(app::ViewerApp::new(cc, opts)))),
     ) {
+        // The error was printed when it happened.
+        Ok(()) if failure.lock().is_ok_and(|f| f.is_some()) => std::process::ExitCode::FAILURE,
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");

@@ -63,13 +63,29 @@ impl Worker {
         let (reply_tx, rx) = unbounded::<Reply>();
         let handle = std::thread::Builder::new()
             .name("openrt-viewer-render".into())
-            .spawn(move || run(&req_rx, &reply_tx, &repaint))
-            .expect("spawning the render thread");
-        Self {
-            tx,
-            rx,
-            handle: Some(handle),
-        }
+            .spawn(move || {
+                // A panic is a bug: it is reported to the window, then the
+                // thread ends and the window sees the channel close.
+                let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(&req_rx, &reply_tx, &repaint)));
+                if let Err(p) = r {
+                    let what = p
+                        .downcast_ref::<String>()
+                        .cloned()
+                        .or_else(|| p.downcast_ref::<&str>().map(ToString::to_string))
+                        .unwrap_or_default();
+                    let _ = reply_tx.send(Reply::Error(format!("the render thread panicked: {what}")));
+                    repaint();
+                }
+            });
+        // Without a render thread the window still opens and reports it.
+        let handle = match handle {
+            Ok(h) => Some(h),
+            Err(e) => {
+                eprintln!("error: cannot start the render thread: {e}");
+                None
+            }
+        };
+        Self { tx, rx, handle }
     }
 }
 

@@ -31,6 +31,7 @@ fn available() -> Option<PathBuf> {
 }
 
 #[test]
+#[cfg_attr(not(bart_data), ignore = "BART data not found: set OPENRT_BART_DIR")]
 fn the_viewer_renders_the_kitchen_in_a_real_window() {
     let Some(bart) = available() else { return };
     let out = std::env::temp_dir().join(format!("openrt-viewer-smoke-{}.png", std::process::id()));
@@ -79,4 +80,49 @@ fn the_viewer_renders_the_kitchen_in_a_real_window() {
     assert!(bright * 2 > total, "mostly dark: {bright}/{total}");
     let _ = std::fs::remove_file(&out);
     let _ = std::fs::remove_file(out.with_extension("json"));
+}
+
+/// `--screenshot` on a scene that does not load: the window reports the
+/// error, and the process exits with status 1 and the error within seconds.
+#[test]
+fn a_broken_scene_ends_a_screenshot_run_with_its_error() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "xvfb-run not found (apt-get install xvfb)"
+        );
+        println!("skipped: xvfb-run not found");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("broken.aff");
+    std::fs::write(&scene, "v\nfrom 0 0 5\nat 0 0 0\nresolution 16384 16384\n").unwrap();
+    let start = std::time::Instant::now();
+    let out = Command::new("timeout")
+        .args(["120", "xvfb-run", "-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_openrt-viewer"))
+        .arg(&scene)
+        .args(["--frames", "2", "--threads", "1", "--screenshot"])
+        .arg(dir.path().join("shot.png"))
+        .env("LIBGL_ALWAYS_SOFTWARE", "1")
+        .output()
+        .expect("running the viewer");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "stderr: {stderr}");
+    assert!(
+        stderr.contains("error: ") && stderr.contains("broken.aff:4:"),
+        "{stderr}"
+    );
+    assert!(start.elapsed().as_secs() < 60, "took {:?}", start.elapsed());
+    assert!(!dir.path().join("shot.png").exists(), "no screenshot of a failed run");
+    // A thread count beyond the limit is refused before a window opens.
+    let out = Command::new(env!("CARGO_BIN_EXE_openrt-viewer"))
+        .args(["--threads", "100000"])
+        .output()
+        .expect("running the viewer");
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("MAX_THREADS")
+            || String::from_utf8_lossy(&out.stderr).contains("thread count")
+    );
 }

@@ -141,6 +141,7 @@ fn packets_answer_as_single_rays_on_the_shipped_scenes() {
 }
 
 #[test]
+#[cfg_attr(not(bart_data), ignore = "BART data not found: set OPENRT_BART_DIR")]
 fn packets_answer_as_single_rays_on_the_bart_scenes() {
     let Some(dir) = bart() else { return };
     let mut k = ScenePlayer::open(Some(&dir.join("kitchen/kitchen.aff"))).unwrap();
@@ -200,6 +201,11 @@ fn kd_and_kd_single_render_the_same_bytes() {
         let last = p.frames().saturating_sub(1);
         same_bytes(name, &mut p, last / 2);
     }
+}
+
+#[test]
+#[cfg_attr(not(bart_data), ignore = "BART data not found: set OPENRT_BART_DIR")]
+fn kd_and_kd_single_render_the_same_bytes_on_the_bart_scenes() {
     let Some(dir) = bart() else { return };
     let mut k = ScenePlayer::open(Some(&dir.join("kitchen/kitchen.aff"))).unwrap();
     same_bytes("kitchen", &mut k, 100);

@@ -21,7 +21,18 @@ const MUTANTS: usize = 5000;
 const SLOW: Duration = Duration::from_secs(2);
 
 const NUMBERS: &[&str] = &[
-    "nan", "NaN", "inf", "-inf", "1e39", "-1e39", "-0", "0", "4294967296", "-1", "1e-45", "18446744073709551616",
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e39",
+    "-1e39",
+    "-0",
+    "0",
+    "4294967296",
+    "-1",
+    "1e-45",
+    "18446744073709551616",
 ];
 
 fn data() -> PathBuf {
@@ -178,7 +189,12 @@ fn check(report: &Report) {
     if std::env::var("OPENRT_MUTANT").is_err() {
         assert_eq!(report.ok + report.errors, MUTANTS);
         // Both outcomes must occur, or the mutants test nothing.
-        assert!(report.ok > MUTANTS / 20 && report.errors > MUTANTS / 20, "{} ok, {} errors", report.ok, report.errors);
+        assert!(
+            report.ok > MUTANTS / 20 && report.errors > MUTANTS / 20,
+            "{} ok, {} errors",
+            report.ok,
+            report.errors
+        );
     }
 }
 
