@@ -6,6 +6,7 @@
 //! Seeded, so a failure names a mutant that can be replayed:
 //! `OPENRT_MUTANT=format:index cargo test --test mutants -- --nocapture`.
 
+use std::fmt::Write;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -287,7 +288,7 @@ fn texture_mutants() {
     let ascii = {
         let mut s = String::from("P3\n# ascii\n4 4\n255\n");
         for v in &ppm[ppm.len() - 48..] {
-            s.push_str(&format!("{v} "));
+            write!(s, "{v} ").unwrap();
         }
         s.into_bytes()
     };
