@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 mod bench;
+mod soak;
 
 /// Most frames `openrt bench --frames` samples per scene.
 const MAX_BENCH_FRAMES: usize = 1000;
@@ -105,6 +106,25 @@ enum Command {
         /// Report file.
         #[arg(short, long, default_value = "docs/BENCHMARKS.md")]
         output: PathBuf,
+    },
+    /// Plays a scene in a loop for many frames, sampling resident memory and frame time.
+    Soak {
+        /// Scene file (.ron or .aff).
+        scene: PathBuf,
+        /// Frames in all (the animation loops).
+        #[arg(long, default_value_t = 10_000)]
+        frames: u64,
+        /// Frames per sample.
+        #[arg(long, default_value_t = 100)]
+        every: u64,
+        /// Samples as JSON lines.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// SVG plot of memory and frame time.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        #[command(flatten)]
+        quality: Quality,
     },
     /// Plays an animation headless, writing frames and per-frame statistics.
     Play {
@@ -269,6 +289,31 @@ fn run(cli: Cli) -> Result<(), String> {
                 out: output,
                 command,
             })
+        }
+        Command::Soak {
+            scene,
+            frames,
+            every,
+            output,
+            plot,
+            quality,
+        } => {
+            let player = ScenePlayer::open(Some(&scene)).map_err(|e| e.to_string())?;
+            let s = settings(&player, &quality);
+            drop(player);
+            let summary = soak::run(
+                &soak::SoakOptions {
+                    scene,
+                    frames,
+                    every,
+                    output,
+                    plot,
+                },
+                &s,
+                &renderer(&quality)?,
+            )?;
+            print!("{summary}");
+            Ok(())
         }
         Command::Play {
             scene,

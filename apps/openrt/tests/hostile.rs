@@ -99,3 +99,41 @@ fn crafted_inputs_give_errors_not_crashes() {
         assert!(!err.contains("panicked"), "openrt {args:?}: {err}");
     }
 }
+
+/// `openrt soak` plays a scene in a loop and reports memory and frame time
+/// (the 10,000-frame runs are in docs/ROBUSTNESS.md).
+#[test]
+fn soak_reports_memory_and_frame_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/animated.ron");
+    let out = Command::new(env!("CARGO_BIN_EXE_openrt"))
+        .arg("soak")
+        .arg(&scene)
+        .args([
+            "--frames",
+            "400",
+            "--every",
+            "10",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--threads",
+            "1",
+            "-o",
+        ])
+        .arg(dir.path().join("soak.jsonl"))
+        .output()
+        .expect("openrt runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        stdout.contains("resident memory") && stdout.contains("drift"),
+        "{stdout}"
+    );
+    let lines = std::fs::read_to_string(dir.path().join("soak.jsonl")).unwrap();
+    assert_eq!(lines.lines().count(), 40);
+    let last: serde_json::Value = serde_json::from_str(lines.lines().last().unwrap()).unwrap();
+    assert_eq!(last["frame"], 400);
+    assert!(last["rss_mb"].as_f64().unwrap() > 1.0);
+}
