@@ -389,6 +389,16 @@ impl ViewerApp {
         if let Some(e) = &self.error {
             ui.colored_label(egui::Color32::LIGHT_RED, e);
         }
+        if let Some(info) = self.info.as_ref().filter(|i| !i.warnings.is_empty()) {
+            egui::CollapsingHeader::new(
+                egui::RichText::new(format!("{} load warnings", info.warnings.len())).color(egui::Color32::YELLOW),
+            )
+            .show(ui, |ui| {
+                for w in &info.warnings {
+                    ui.label(w);
+                }
+            });
+        }
     }
 
     /// Mouse and keyboard on the image move the camera (and stop following the scene's).

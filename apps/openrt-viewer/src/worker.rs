@@ -27,6 +27,8 @@ pub enum Request {
 #[derive(Clone, Debug)]
 pub struct SceneInfo {
     pub name: String,
+    /// What the load accepted leniently, with file and line.
+    pub warnings: Vec<String>,
     pub frames: u32,
     pub time_range: (f32, f32),
     pub settings: RenderSettings,
@@ -116,6 +118,7 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                             name: path
                                 .as_ref()
                                 .map_or_else(|| "built-in room".into(), |p| p.display().to_string()),
+                            warnings: p.warnings().iter().map(ToString::to_string).collect(),
                             frames: p.frames(),
                             time_range: p.time_range(),
                             settings: p.settings(),

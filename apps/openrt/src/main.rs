@@ -29,6 +29,10 @@ use openrt_scene::ScenePlayer;
     about = "Interactive ray tracing of dynamic scenes, headless"
 )]
 struct Cli {
+    /// Treat load warnings (such as AFF keys that go back in time, which are
+    /// dropped) as errors.
+    #[arg(long, global = true)]
+    strict: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -154,6 +158,29 @@ fn main() -> ExitCode {
     }
 }
 
+/// Opens a scene; its load warnings are printed once (or, with `--strict`,
+/// the first one is the error).
+pub fn open_scene(path: Option<&Path>, strict: bool) -> Result<ScenePlayer, String> {
+    if strict {
+        return ScenePlayer::open_strict(path).map_err(|e| e.to_string());
+    }
+    let player = ScenePlayer::open(path).map_err(|e| e.to_string())?;
+    let w = player.warnings();
+    for warning in w.iter().take(MAX_PRINTED_WARNINGS) {
+        eprintln!("warning: {warning}");
+    }
+    if w.len() > MAX_PRINTED_WARNINGS {
+        eprintln!(
+            "warning: {} more warnings not shown (--strict makes the first an error)",
+            w.len() - MAX_PRINTED_WARNINGS
+        );
+    }
+    Ok(player)
+}
+
+/// Load warnings printed one by one; the rest are counted.
+const MAX_PRINTED_WARNINGS: usize = 20;
+
 fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
     let mut s = player.settings();
     s.width = q.width.unwrap_or(s.width);
@@ -208,6 +235,7 @@ fn frame_range(spec: Option<&str>, n: u32) -> Result<std::ops::Range<u32>, Strin
 }
 
 fn run(cli: Cli) -> Result<(), String> {
+    let strict = cli.strict;
     match cli.command {
         Command::Render {
             scene,
@@ -216,7 +244,7 @@ fn run(cli: Cli) -> Result<(), String> {
             frame,
             time,
         } => {
-            let mut player = ScenePlayer::open(scene.as_deref()).map_err(|e| e.to_string())?;
+            let mut player = open_scene(scene.as_deref(), strict)?;
             let t = match (frame, time) {
                 (Some(f), _) if f >= player.frames() => {
                     return Err(format!("--frame {f}: the scene has {} frames", player.frames()));
@@ -298,7 +326,7 @@ fn run(cli: Cli) -> Result<(), String> {
             plot,
             quality,
         } => {
-            let player = ScenePlayer::open(Some(&scene)).map_err(|e| e.to_string())?;
+            let player = open_scene(Some(&scene), strict)?;
             let s = settings(&player, &quality);
             drop(player);
             let summary = soak::run(
@@ -322,7 +350,7 @@ fn run(cli: Cli) -> Result<(), String> {
             stats,
             quality,
         } => {
-            let mut player = ScenePlayer::open(Some(&scene)).map_err(|e| e.to_string())?;
+            let mut player = open_scene(Some(&scene), strict)?;
             let range = frame_range(frames.as_deref(), player.frames())?;
             if let Some(dir) = &output {
                 std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;

@@ -76,3 +76,37 @@ pub enum SceneError {
         source: openrt_core::CoreError,
     },
 }
+
+/// Something a lenient reader accepted in a file, with where it is: the
+/// CLI prints a load's warnings once, the viewer shows them, and
+/// `--strict` (`ScenePlayer::open_strict`) turns the first into an error.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SceneWarning {
+    /// The file.
+    pub path: PathBuf,
+    /// 1-based line.
+    pub line: usize,
+    /// 1-based column.
+    pub col: usize,
+    /// What was done.
+    pub msg: String,
+}
+
+impl std::fmt::Display for SceneWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}:{}: {}", self.path.display(), self.line, self.col, self.msg)
+    }
+}
+
+impl SceneWarning {
+    /// The warning as a parse error (strict loading).
+    #[must_use]
+    pub fn into_error(self) -> SceneError {
+        SceneError::Parse {
+            path: self.path,
+            line: self.line,
+            col: self.col,
+            msg: format!("{} (an error with --strict)", self.msg),
+        }
+    }
+}

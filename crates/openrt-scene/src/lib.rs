@@ -23,7 +23,7 @@ mod shapes;
 mod texture_io;
 
 pub use builtin::{DEFAULT_SCENE_RON, default_scene};
-pub use error::SceneError;
+pub use error::{SceneError, SceneWarning};
 pub use limits::{
     MAX_ANIMART_TRIANGLES, MAX_BLOCK_NESTING, MAX_FILE_BYTES, MAX_FRAMES, MAX_HEADER_COUNT, MAX_INCLUDE_DEPTH,
     MAX_INCLUDES, MAX_SCENE_TRIANGLES, MAX_SPHERE_SEGMENTS, MAX_TERRAIN_GRID, MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS,

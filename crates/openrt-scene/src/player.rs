@@ -6,7 +6,7 @@ use std::sync::Arc;
 use openrt_core::{Camera, CommitStats, Context, Environment, RenderSettings};
 
 use crate::aff::AffPlayer;
-use crate::{LoadedScene, RonScene, SceneError, default_scene, load_ron_any};
+use crate::{LoadedScene, RonScene, SceneError, SceneWarning, default_scene, load_ron_any};
 
 /// A scene that can be stepped through time.
 pub enum ScenePlayer {
@@ -37,6 +37,26 @@ impl ScenePlayer {
                 path: path.to_path_buf(),
                 what: "unknown scene type: expected a .ron or .aff file".into(),
             }),
+        }
+    }
+
+    /// [`ScenePlayer::open`], with every warning an error: the first one
+    /// (such as an AFF key that goes back in time) fails the load.
+    pub fn open_strict(path: Option<&Path>) -> Result<Self, SceneError> {
+        let p = Self::open(path)?;
+        match p.warnings().first() {
+            Some(w) => Err(w.clone().into_error()),
+            None => Ok(p),
+        }
+    }
+
+    /// What the load accepted leniently, with file and line (empty for RON
+    /// scenes, which are read strictly).
+    #[must_use]
+    pub fn warnings(&self) -> &[SceneWarning] {
+        match self {
+            Self::Ron(_) => &[],
+            Self::Aff(a) => &a.scene().warnings,
         }
     }
 

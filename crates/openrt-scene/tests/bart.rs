@@ -176,13 +176,8 @@ fn malformed_aff_files_give_file_and_line() {
     assert_parse_error("xs 1 1 1 0 1 0 0 0 0 0\n{\n p 3 0 0 0 1 0 0 0 1 0\n", 3, "'}' expected");
     assert_parse_error("}\n", 1, "without a matching");
     assert_parse_error("x {\n}\n", 1, "needs a name");
-    // tpa without samples, keys going back in time.
+    // tpa without samples.
     assert_parse_error("tpa 0\n", 1, "sample count");
-    assert_parse_error(
-        "k n {\n transl 2\n 1 0 0 0 0 0 0\n 0 0 0 0 0 0 0\n}\n",
-        2,
-        "must not decrease",
-    );
     // A missing include names the file at the include line.
     assert_parse_error("b 0 0 0\ni 0 nothere.aff\n", 2, "nothere.aff");
 }
@@ -212,4 +207,29 @@ fn ci_runs_have_the_bart_data() {
         found || std::env::var_os("CI").is_none(),
         "CI is set but the BART data was not found (set OPENRT_BART_DIR)"
     );
+}
+
+/// A key that goes back in time is dropped with a warning at its line (the
+/// BART robots repeat a run of keys); `open_strict` makes it the error.
+#[test]
+fn keys_going_back_in_time_are_dropped_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "k.aff",
+        "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 0.1\nresolution 8 8\na 0 3 4\nx n {\n p 3 0 0 0 1 0 0 0 1 0\n}\n\
+         k n {\n transl 4\n 0 0 0 0 0 0 0\n 2 1 0 0 0 0 0\n 1 5 0 0 0 0 0\n 3 2 0 0 0 0 0\n}\n",
+    );
+    let scene = parse_aff(&p).unwrap();
+    assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
+    let w = scene.warnings[0].to_string();
+    assert!(w.contains("k.aff:16:") && w.contains("time 1 after 2 dropped"), "{w}");
+    assert_eq!(scene.tracks["n"].translation.len(), 3, "the other keys are kept");
+    let player = openrt_scene::ScenePlayer::open(Some(&p)).unwrap();
+    assert_eq!(player.warnings().len(), 1);
+    let e = openrt_scene::ScenePlayer::open_strict(Some(&p))
+        .err()
+        .expect("strict refuses")
+        .to_string();
+    assert!(e.contains("k.aff:16:") && e.contains("--strict"), "{e}");
 }

@@ -91,7 +91,9 @@ fn locate(times: &[f32], time: f32) -> (usize, f32) {
     }
     // Usable range: 2nd to second-to-last key (the whole list if too short).
     let (lo, hi) = if n >= 4 { (1, n - 2) } else { (0, n - 1) };
-    let t = time.clamp(times[lo], times[hi]);
+    // NOTE: max/min, not clamp: keys given by hand may be out of order or
+    // NaN, and clamp panics on those.
+    let t = time.max(times[lo]).min(times[hi]);
     let mut i = lo;
     while i + 1 < hi && times[i + 1] <= t {
         i += 1;

@@ -83,14 +83,21 @@ impl AnimatedTriangle {
     /// Vertices and normals at `time`.
     #[must_use]
     pub fn at(&self, time: f32) -> ([Vec3; 3], [Vec3; 3]) {
-        let n = self.times.len();
-        if time <= self.times[0] || n == 1 {
+        // Inconsistent lists (possible: the fields are public) are cut to
+        // the shortest; an empty triangle has no samples and stays at zero.
+        let n = self.times.len().min(self.vertices.len()).min(self.normals.len());
+        if n == 0 {
+            return ([Vec3::ZERO; 3], [Vec3::ZERO; 3]);
+        }
+        // NOTE: a NaN time takes the first sample.
+        let after_first = time > self.times[0];
+        if !after_first || n == 1 {
             return (self.vertices[0], self.normals[0]);
         }
         if time >= self.times[n - 1] {
             return (self.vertices[n - 1], self.normals[n - 1]);
         }
-        let i = self.times.windows(2).position(|w| time < w[1]).unwrap_or(n - 2);
+        let i = self.times[..n].windows(2).position(|w| time < w[1]).unwrap_or(n - 2);
         let span = self.times[i + 1] - self.times[i];
         let u = if span > 0.0 { (time - self.times[i]) / span } else { 1.0 };
         let lerp = |a: [Vec3; 3], b: [Vec3; 3]| [a[0].lerp(b[0], u), a[1].lerp(b[1], u), a[2].lerp(b[2], u)];
@@ -183,6 +190,8 @@ pub struct AffScene {
     pub tracks: HashMap<String, Track>,
     /// What the files contain.
     pub counts: AffCounts,
+    /// What was read leniently (keys that go back in time, dropped).
+    pub warnings: Vec<crate::SceneWarning>,
 }
 
 impl AffScene {
@@ -209,12 +218,84 @@ impl AffScene {
         }
     }
 
-    /// Object-to-world transform of node `i` at `time`.
+    /// Object-to-world transform of node `i` at `time`: its own keyframed
+    /// motion under its parents'. `None` for a node that does not exist or
+    /// whose parents do not come before it ([`AffScene::validate`]).
     #[must_use]
-    pub fn node_transform(&self, i: usize, time: f32) -> Mat4 {
-        let node = &self.nodes[i];
-        let own = self.tracks.get(&node.name).map_or(Mat4::IDENTITY, |t| t.matrix(time));
-        let parent = node.parent.map_or(Mat4::IDENTITY, |p| self.node_transform(p, time));
-        parent * node.to_parent * own
+    pub fn node_transform(&self, i: usize, time: f32) -> Option<Mat4> {
+        let mut m = Mat4::IDENTITY;
+        let mut at = Some(i);
+        let mut below = usize::MAX;
+        while let Some(k) = at {
+            // Parents come first: a chain that does not go down is broken.
+            if k >= below {
+                return None;
+            }
+            let node = self.nodes.get(k)?;
+            let own = self.tracks.get(&node.name).map_or(Mat4::IDENTITY, |t| t.matrix(time));
+            m = node.to_parent * own * m;
+            below = k;
+            at = node.parent;
+        }
+        Some(m)
+    }
+
+    /// Checks that every index in the scene points at something: material
+    /// and texture indices, node parents (which come before their children),
+    /// and the per-triangle lists of meshes and animated triangles. The
+    /// parser's scenes always pass; [`super::AffPlayer::new`] checks a scene
+    /// built by hand.
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] naming the first broken index.
+    pub fn validate(&self) -> Result<(), crate::SceneError> {
+        let bad = |what: String| {
+            Err(crate::SceneError::Invalid {
+                path: self.path.clone(),
+                what: format!("inconsistent AFF scene: {what}"),
+            })
+        };
+        let nm = self.materials.len();
+        if let Some((k, t)) = self
+            .materials
+            .iter()
+            .enumerate()
+            .find_map(|(k, m)| m.texture.filter(|&t| t >= self.textures.len()).map(|t| (k, t)))
+        {
+            return bad(format!("material {k} uses texture {t} of {}", self.textures.len()));
+        }
+        let mesh_ok = |m: &AffMesh| {
+            let n = m.triangles.len();
+            m.normals.len() == n && m.uvs.len() == n && m.materials.len() == n && m.materials.iter().all(|&i| i < nm)
+        };
+        if !mesh_ok(&self.static_mesh) {
+            return bad("the static mesh's lists differ in length or use a missing material".into());
+        }
+        for (k, node) in self.nodes.iter().enumerate() {
+            if node.parent.is_some_and(|p| p >= k) {
+                return bad(format!(
+                    "node {k} ('{}') has parent {:?}, not an earlier node",
+                    node.name, node.parent
+                ));
+            }
+            if !mesh_ok(&node.mesh) {
+                return bad(format!(
+                    "node {k} ('{}'): mesh lists differ in length or use a missing material",
+                    node.name
+                ));
+            }
+        }
+        for (k, t) in self.animated.iter().enumerate() {
+            let n = t.times.len();
+            if n == 0 || t.vertices.len() != n || t.normals.len() != n || t.material >= nm {
+                return bad(format!(
+                    "animated triangle {k}: {n} times, {} vertex and {} normal samples, material {} of {nm}",
+                    t.vertices.len(),
+                    t.normals.len(),
+                    t.material
+                ));
+            }
+        }
+        Ok(())
     }
 }

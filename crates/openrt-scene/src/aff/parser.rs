@@ -9,8 +9,8 @@ use openrt_core::{Camera, MAX_IMAGE_SIDE, Material, PointLight};
 use super::keyframes::{RotKey, Tcb, Track, VecKey};
 use super::model::{AffCounts, AffMaterial, AffMesh, AffScene, AnimNode, AnimatedTriangle, AnimationRange};
 use super::tokens::{Token, TokenStream};
-use crate::SceneError;
 use crate::limits::{MAX_BLOCK_NESTING, MAX_FRAMES, MAX_HEADER_COUNT, MAX_SCENE_TRIANGLES};
+use crate::{SceneError, SceneWarning};
 
 /// Segments around a tessellated cone or sphere.
 const SEGMENTS: usize = 16;
@@ -42,6 +42,7 @@ pub(crate) fn parse_aff_limited(path: &Path, triangle_limit: usize) -> Result<Af
             animated: Vec::new(),
             tracks: HashMap::new(),
             counts: AffCounts::default(),
+            warnings: Vec::new(),
         },
         fm: Material::default(),
         material_index: HashMap::new(),
@@ -52,6 +53,7 @@ pub(crate) fn parse_aff_limited(path: &Path, triangle_limit: usize) -> Result<Af
         nesting: 0,
         triangles: 0,
         triangle_limit,
+        last_key_time: None,
     };
     p.commands(false)?;
     p.scene.counts.animated_node_names = p.names.len();
@@ -77,6 +79,8 @@ struct Parser {
     triangles: usize,
     /// [`MAX_SCENE_TRIANGLES`] (lower in tests).
     triangle_limit: usize,
+    /// Time of the last key kept in the list being read.
+    last_key_time: Option<f32>,
 }
 
 impl Parser {
@@ -340,15 +344,16 @@ impl Parser {
                     let n = self.ts.count("key count", MAX_HEADER_COUNT)?;
                     let mut keys = Vec::with_capacity(self.ts.capacity_for(n));
                     for _ in 0..n {
+                        let at = self.ts.peek().cloned();
                         let time = self.ts.number("key time")?;
                         let value = self.ts.vec3("key value")?;
-                        keys.push(VecKey {
+                        let key = VecKey {
                             time,
                             value,
                             tcb: self.tcb()?,
-                        });
+                        };
+                        self.keep_key(&mut keys, key, key.time, at.as_ref(), &name.text);
                     }
-                    Self::check_times(&t, keys.iter().map(|k| k.time))?;
                     if t.text == "transl" {
                         track.translation = keys;
                     } else {
@@ -359,17 +364,18 @@ impl Parser {
                     let n = self.ts.count("key count", MAX_HEADER_COUNT)?;
                     let mut keys = Vec::with_capacity(self.ts.capacity_for(n));
                     for _ in 0..n {
+                        let at = self.ts.peek().cloned();
                         let time = self.ts.number("key time")?;
                         let axis = self.ts.vec3("rotation axis")?;
                         let degrees = self.ts.number("rotation angle")?;
-                        keys.push(RotKey {
+                        let key = RotKey {
                             time,
                             axis,
                             degrees,
                             tcb: self.tcb()?,
-                        });
+                        };
+                        self.keep_key(&mut keys, key, key.time, at.as_ref(), &name.text);
                     }
-                    Self::check_times(&t, keys.iter().map(|k| k.time))?;
                     track.rotation = keys;
                 }
                 other => return Err(Self::err(&t, format!("unknown keyframe section '{other}'"))),
@@ -386,6 +392,31 @@ impl Parser {
             continuity: self.ts.number("continuity")?,
             bias: self.ts.number("bias")?,
         })
+    }
+
+    /// Appends a key unless its time goes back before the last kept key's:
+    /// such a key is dropped with a warning at its line (the BART reader
+    /// uses the first key segment that holds a time, so a repeated run of
+    /// keys never plays).
+    fn keep_key<K>(&mut self, keys: &mut Vec<K>, key: K, time: f32, at: Option<&Token>, track: &str)
+    where
+        K: Copy,
+    {
+        let last = self.last_key_time.filter(|_| !keys.is_empty());
+        match (last, at) {
+            (Some(prev), Some(tok)) if time < prev => {
+                self.scene.warnings.push(SceneWarning {
+                    path: (*tok.file).clone(),
+                    line: tok.line,
+                    col: tok.col,
+                    msg: format!("key of '{track}' at time {time} after {prev} dropped (key times must not decrease)"),
+                });
+            }
+            _ => {
+                self.last_key_time = Some(time);
+                keys.push(key);
+            }
+        }
     }
 
     fn check_times(tok: &Token, times: impl Iterator<Item = f32>) -> Result<(), SceneError> {

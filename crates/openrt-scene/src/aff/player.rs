@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::Vec3;
+use glam::{Mat4, Vec3};
 use openrt_core::{
     Camera, CommitStats, Context, Environment, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind,
     RenderSettings,
@@ -31,8 +31,8 @@ pub fn bart_dir() -> PathBuf {
 
 /// An AFF scene loaded into a context, ready to step through its frames.
 pub struct AffPlayer {
-    /// The parsed file.
-    pub scene: AffScene,
+    /// The parsed file (read-only: the player's objects index into it).
+    scene: AffScene,
     /// The context the scene lives in.
     pub ctx: Context,
     /// Lights, ambient light and background.
@@ -51,6 +51,7 @@ impl AffPlayer {
 
     /// Defines the objects of a parsed scene.
     pub fn new(scene: AffScene) -> Result<Self, SceneError> {
+        scene.validate()?;
         let path = scene.path.clone();
         let core = |source| SceneError::Core {
             path: path.clone(),
@@ -94,8 +95,10 @@ impl AffPlayer {
                 shared.insert(key, id);
                 id
             };
-            ctx.load_matrix(scene.node_transform(i, scene.animation.map_or(0.0, |a| a.start)))
-                .map_err(core)?;
+            let m = scene
+                .node_transform(i, scene.animation.map_or(0.0, |a| a.start))
+                .unwrap_or(Mat4::IDENTITY);
+            ctx.load_matrix(m).map_err(core)?;
             node_instances.push(Some(ctx.instantiate(id).map_err(core)?));
         }
         ctx.load_identity();
@@ -129,6 +132,12 @@ impl AffPlayer {
         })
     }
 
+    /// The parsed file.
+    #[must_use]
+    pub fn scene(&self) -> &AffScene {
+        &self.scene
+    }
+
     /// Number of frames (1 for a scene without `a`).
     #[must_use]
     pub fn frames(&self) -> u32 {
@@ -151,9 +160,8 @@ impl AffPlayer {
         };
         for (i, inst) in self.node_instances.iter().enumerate() {
             if let Some(inst) = inst {
-                self.ctx
-                    .set_instance_transform(*inst, self.scene.node_transform(i, time))
-                    .map_err(core)?;
+                let m = self.scene.node_transform(i, time).unwrap_or(Mat4::IDENTITY);
+                self.ctx.set_instance_transform(*inst, m).map_err(core)?;
             }
         }
         if let Some(id) = self.animated_object {
