@@ -11,12 +11,14 @@ fn sample() -> openrt_scene::aff::AffScene {
     parse_aff(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/sample.aff")).expect("the fixture parses")
 }
 
+/// A change that breaks a parsed scene.
+type Break = Box<dyn Fn(&mut openrt_scene::aff::AffScene)>;
+
 #[test]
 fn an_inconsistent_aff_scene_is_refused_by_the_player() {
     let ok = sample();
     ok.validate().unwrap();
     assert!(AffPlayer::new(ok.clone()).is_ok());
-    type Break = Box<dyn Fn(&mut openrt_scene::aff::AffScene)>;
     let broken: Vec<(&str, Break)> = vec![
         ("material", Box::new(|s| s.static_mesh.materials[0] = 999)),
         ("lists", Box::new(|s| s.static_mesh.normals.truncate(1))),
