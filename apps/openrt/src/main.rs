@@ -91,7 +91,7 @@ enum Command {
         /// Scenes (names in scenes/ or files), comma-separated; the first is used for speed against error.
         #[arg(
             long,
-            default_value = "kitchen,museum1k,museum4k,museum16k,terrain",
+            default_value = "kitchen,robots,museum1k,museum4k,museum16k,terrain",
             value_delimiter = ','
         )]
         scenes: Vec<String>,

@@ -137,3 +137,38 @@ fn soak_reports_memory_and_frame_time() {
     assert_eq!(last["frame"], 400);
     assert!(last["rss_mb"].as_f64().unwrap() > 1.0);
 }
+
+/// Without `OPENRT_BART_DIR`, the BART folder is found beside the
+/// repository whatever the current folder; when it is not there, the error
+/// names the paths tried.
+#[test]
+fn the_bart_folder_is_found_from_any_folder_or_named_in_the_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let default = repo.join("../shared/bart/kitchen/kitchen.aff");
+    let out = Command::new(env!("CARGO_BIN_EXE_openrt"))
+        .env_remove("OPENRT_BART_DIR")
+        .current_dir(dir.path())
+        .arg("render")
+        .arg(repo.join("scenes/kitchen.ron"))
+        .args(["--width", "16", "--height", "12", "-o", "k.png"])
+        .output()
+        .expect("openrt runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    if default.is_file() {
+        assert!(out.status.success(), "{err}");
+        assert!(dir.path().join("k.png").is_file());
+    } else {
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains("also tried") && err.contains("OPENRT_BART_DIR"), "{err}");
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_openrt"))
+        .env("OPENRT_BART_DIR", dir.path().join("nowhere"))
+        .arg("render")
+        .arg(repo.join("scenes/kitchen.ron"))
+        .output()
+        .expect("openrt runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("nowhere/kitchen/kitchen.aff not found"), "{err}");
+}

@@ -234,7 +234,30 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
                 ),
             });
         }
-        let aff = crate::aff::bart_dir().join(&b.file);
+        let dir = crate::aff::bart_dir();
+        let aff = dir.join(&b.file);
+        if !aff.is_file() {
+            let how = if std::env::var_os("OPENRT_BART_DIR").is_some() {
+                "OPENRT_BART_DIR".to_string()
+            } else {
+                format!(
+                    "the default; also tried {}",
+                    crate::aff::bart_dir_candidates()
+                        .iter()
+                        .map(|p| p.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            };
+            return Err(SceneError::Invalid {
+                path: path.to_path_buf(),
+                what: format!(
+                    "BART file {} not found (BART folder {} from {how}); set OPENRT_BART_DIR to the folder holding kitchen/, museum/ and robots/",
+                    aff.display(),
+                    dir.display()
+                ),
+            });
+        }
         let mut scene = parse_aff(&aff)?;
         if let Some(n) = b.animart_triangles {
             if scene.materials.is_empty() {

@@ -233,3 +233,55 @@ fn keys_going_back_in_time_are_dropped_with_a_warning() {
         .to_string();
     assert!(e.contains("k.aff:16:") && e.contains("--strict"), "{e}");
 }
+
+/// The robots as the data's README describes them, with the keys of
+/// `Robot1.aff` that go back in time dropped with warnings.
+#[test]
+#[cfg_attr(not(bart_data), ignore = "BART data not found: set OPENRT_BART_DIR")]
+fn robots_have_the_documented_counts() {
+    let Some(dir) = bart() else { return };
+    let r = parse_aff(&dir.join("robots/Robot.aff")).unwrap();
+    assert_eq!(
+        r.counts.mesh_triangles, 71_708,
+        "triangles once the includes are expanded"
+    );
+    assert_eq!(r.counts.mesh_instances, 1849);
+    assert_eq!(r.counts.lights, 1);
+    assert_eq!(r.counts.animated_node_names, 190);
+    assert_eq!(r.textures.len(), 44, "44 PPM textures");
+    assert_eq!(r.animation.unwrap().frames, 800);
+    assert_eq!(r.warnings.len(), 12);
+    assert!(
+        r.warnings
+            .iter()
+            .all(|w| w.path.ends_with("Robot1.aff") && w.msg.contains("gun_rot1")),
+        "{:?}",
+        r.warnings
+    );
+    let mut p = openrt_scene::ScenePlayer::open(Some(&repo_scene("robots"))).unwrap();
+    p.set_time(p.time_of(0)).unwrap();
+    let s = p.ctx().scene();
+    assert_eq!(s.instances().len(), 161, "161 instances");
+    assert_eq!(s.instanced_triangles(), 71_580, "71.6k triangles once instanced");
+    // Distinct geometry: about 15.5k triangles in the objects.
+    let mut seen = std::collections::HashSet::new();
+    let distinct: usize = s
+        .instances()
+        .iter()
+        .filter(|i| seen.insert(i.object))
+        .map(|i| i.geometry.tree.triangles().len())
+        .sum();
+    assert!((15_000..16_000).contains(&distinct), "{distinct} distinct triangles");
+}
+
+fn repo_scene(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../scenes/{name}.ron"))
+}
+
+#[test]
+#[cfg_attr(not(bart_data), ignore = "BART data not found: set OPENRT_BART_DIR")]
+fn robots_frame_400_matches_its_golden() {
+    let Some(dir) = bart() else { return };
+    let mut r = AffPlayer::load(&dir.join("robots/Robot.aff")).unwrap();
+    common::check_golden("robots-f400", &frame(&mut r, 400), 1.5, 0.01);
+}

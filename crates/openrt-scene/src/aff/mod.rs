@@ -11,4 +11,4 @@ mod tokens;
 pub use keyframes::{RotKey, Tcb, Track, VecKey, interpolate_rot, interpolate_vec};
 pub use model::{AffCounts, AffMaterial, AffMesh, AffScene, AnimNode, AnimatedTriangle, AnimationRange};
 pub use parser::parse_aff;
-pub use player::{AffPlayer, bart_dir};
+pub use player::{AffPlayer, bart_dir, bart_dir_candidates};

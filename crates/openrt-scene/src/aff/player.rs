@@ -23,10 +23,34 @@ use super::model::{AffMesh, AffScene};
 use super::parser::parse_aff;
 use crate::{SceneError, load_texture};
 
-/// The folder of the BART scenes: `$OPENRT_BART_DIR`, else `../shared/bart`.
+/// The folder of the BART scenes: `$OPENRT_BART_DIR` when set; otherwise
+/// the first of these that exists, whatever the current folder:
+/// `shared/bart` beside the repository this crate was built from, beside
+/// any folder above the running executable (a `target/` of that
+/// repository), and `../shared/bart` from the current folder. When none
+/// exists, the first candidate (errors name it).
 #[must_use]
 pub fn bart_dir() -> PathBuf {
-    std::env::var_os("OPENRT_BART_DIR").map_or_else(|| PathBuf::from("../shared/bart"), PathBuf::from)
+    if let Some(d) = std::env::var_os("OPENRT_BART_DIR") {
+        return PathBuf::from(d);
+    }
+    let candidates = bart_dir_candidates();
+    candidates
+        .iter()
+        .find(|d| d.is_dir())
+        .cloned()
+        .unwrap_or_else(|| candidates[0].clone())
+}
+
+/// Where [`bart_dir`] looks without `OPENRT_BART_DIR`, in order.
+#[must_use]
+pub fn bart_dir_candidates() -> Vec<PathBuf> {
+    let mut c = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bart")];
+    if let Ok(exe) = std::env::current_exe() {
+        c.extend(exe.ancestors().skip(1).map(|a| a.join("../shared/bart")));
+    }
+    c.push(PathBuf::from("../shared/bart"));
+    c
 }
 
 /// An AFF scene loaded into a context, ready to step through its frames.
