@@ -212,6 +212,7 @@ fuzz_target!(|calls: Vec<Call>| {
                     height: u32::from(h % 5),
                     mode: if whitted { RenderMode::Whitted } else { RenderMode::GlLike },
                     max_depth: u32::from(depth % 20),
+                    ..RenderSettings::default()
                 };
                 let env = Arc::new(Environment {
                     lights: vec![PointLight {

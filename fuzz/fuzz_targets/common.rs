@@ -58,6 +58,7 @@ pub fn exercise(mut p: ScenePlayer) {
             height: 4,
             mode: RenderMode::Whitted,
             max_depth: 3,
+            ..RenderSettings::default()
         };
         match r.render(&p.ctx().scene(), &p.env(), &p.camera(t), &settings) {
             Err(CoreError::RenderThread { reason }) => panic!("render thread failed: {reason}"),

@@ -128,6 +128,7 @@ impl ViewerApp {
             height: ((base.height as f32 * s) as u32).max(8),
             mode: self.mode,
             max_depth: self.depth,
+            ..RenderSettings::default()
         };
         let camera = if self.follow_scene_camera { None } else { self.camera };
         let req = Request::Render {

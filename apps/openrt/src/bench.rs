@@ -82,6 +82,7 @@ fn settings(o: &BenchOptions, mode: RenderMode, depth: u32) -> RenderSettings {
         height: o.height,
         mode,
         max_depth: depth,
+        ..RenderSettings::default()
     }
 }
 

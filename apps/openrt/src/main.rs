@@ -19,7 +19,7 @@ const MAX_BENCH_FRAMES: usize = 1000;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use openrt_accel::BuilderKind;
-use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer};
+use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter};
 use openrt_scene::ScenePlayer;
 
 #[derive(Parser)]
@@ -62,6 +62,12 @@ struct Quality {
     /// Render threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Texture filter: `trilinear` (mipmaps, level of detail from ray cones), `bilinear` or `nearest`.
+    #[arg(long, default_value = "trilinear")]
+    texture_filter: TextureFilter,
+    /// Samples per pixel (low-discrepancy positions, the same for any thread count).
+    #[arg(long, default_value_t = 1)]
+    spp: u32,
     /// Traversal backend: `kd` (ray packets), `kd-single` (one ray at a time); builds with
     /// `--features embree` add `embree` and `embree-packet`.
     #[arg(long, default_value = "kd")]
@@ -190,6 +196,8 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
         Mode::Whitted => RenderMode::Whitted,
     };
     s.max_depth = q.depth;
+    s.texture_filter = q.texture_filter;
+    s.spp = q.spp;
     s
 }
 

@@ -16,6 +16,7 @@ fn render(player: &ScenePlayer, t: f32, mode: RenderMode, r: &Renderer) -> Vec<u
         height: 90,
         mode,
         max_depth: 3,
+        ..RenderSettings::default()
     };
     let (img, _) = r
         .render(&player.ctx().scene(), &player.env(), &player.camera(t), &s)

@@ -88,14 +88,28 @@ impl CameraRays {
     /// distance along that axis.
     #[must_use]
     pub fn ray(&self, x: u32, y: u32) -> Ray {
-        let u = (x as f32 + 0.5) / self.width as f32 * 2.0 - 1.0;
-        let v = 1.0 - (y as f32 + 0.5) / self.height as f32 * 2.0;
+        self.ray_at(x, y, 0.5, 0.5)
+    }
+
+    /// The primary ray through the point `(ox, oy)` of pixel `(x, y)`
+    /// (`(0.5, 0.5)` is its centre: [`CameraRays::ray`]).
+    #[must_use]
+    pub fn ray_at(&self, x: u32, y: u32, ox: f32, oy: f32) -> Ray {
+        let u = (x as f32 + ox) / self.width as f32 * 2.0 - 1.0;
+        let v = 1.0 - (y as f32 + oy) / self.height as f32 * 2.0;
         Ray::new(
             self.from,
             self.fwd + self.right * u + self.up * v,
             self.near,
             f32::INFINITY,
         )
+    }
+
+    /// The angle one pixel spans at the centre of the image (radians, small
+    /// angle): the spread of a primary ray cone.
+    #[must_use]
+    pub fn pixel_spread(&self) -> f32 {
+        2.0 * self.up.length() / self.height as f32
     }
 
     /// Image width.

@@ -100,14 +100,14 @@ pub use ids::{InstanceId, MaterialId, ObjectId, TextureId};
 pub use instance::{InstanceRecord, MIN_TRANSFORM_CONDITIONING};
 pub use light::{Environment, PointLight};
 pub use limits::{
-    MAX_COORDINATE, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SHADE_DEPTH, MAX_THREADS, RENDER_STACK_BYTES, check_depth,
-    check_image_size, check_threads,
+    MAX_COORDINATE, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SHADE_DEPTH, MAX_SPP, MAX_THREADS, RENDER_STACK_BYTES,
+    check_depth, check_image_size, check_spp, check_threads,
 };
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{ObjectGeometry, ObjectMesh, ShadingData};
 pub use primitive::PrimitiveKind;
-pub use render::{Backend, FrameStats, Image, RenderSettings, Renderer, TILE, packet_block};
+pub use render::{Backend, FrameStats, Image, RenderSettings, Renderer, TILE, packet_block, sample_offset};
 pub use scene::{Scene, SceneHit, Surface};
 pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, offset_ray_origin};
-pub use texture::Texture;
+pub use texture::{Texture, TextureFilter};

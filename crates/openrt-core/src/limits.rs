@@ -16,6 +16,9 @@ pub const MAX_IMAGE_PIXELS: u64 = 1 << 25;
 /// the work of one pixel.
 pub const MAX_SHADE_DEPTH: u32 = 16;
 
+/// Most samples per pixel in one frame.
+pub const MAX_SPP: u32 = 4096;
+
 /// Most render threads in one pool.
 pub const MAX_THREADS: usize = 256;
 
@@ -80,6 +83,19 @@ pub fn check_depth(call: &'static str, depth: u32) -> Result<(), CoreError> {
     Ok(())
 }
 
+/// Checks a sample count against 1 and [`MAX_SPP`].
+pub fn check_spp(call: &'static str, spp: u32) -> Result<(), CoreError> {
+    if spp == 0 || spp > MAX_SPP {
+        return Err(CoreError::Limit {
+            call,
+            what: "samples per pixel (at least 1)".into(),
+            value: u64::from(spp),
+            limit: u64::from(MAX_SPP),
+        });
+    }
+    Ok(())
+}
+
 /// Checks a thread count against 1 and [`MAX_THREADS`].
 pub fn check_threads(call: &'static str, threads: usize) -> Result<(), CoreError> {
     if threads == 0 || threads > MAX_THREADS {
@@ -122,5 +138,7 @@ mod tests {
         assert!(check_threads("t", 0).is_err());
         assert!(check_threads("t", MAX_THREADS + 1).is_err());
         assert!(check_threads("t", usize::MAX).is_err());
+        assert!(check_spp("t", 1).is_ok() && check_spp("t", MAX_SPP).is_ok());
+        assert!(check_spp("t", 0).is_err() && check_spp("t", MAX_SPP + 1).is_err());
     }
 }

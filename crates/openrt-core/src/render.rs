@@ -13,11 +13,11 @@ use openrt_accel::{PacketWidth, Ray, lanes_of};
 use parking_lot::Mutex;
 
 use crate::camera::CameraRays;
-use crate::shade::Shader;
+use crate::shade::{Cone, Shader};
 use crate::tracer::Tracer;
 use crate::{
-    Camera, CoreError, Environment, RENDER_STACK_BYTES, RayCounts, RenderMode, Scene, check_depth, check_image_size,
-    check_threads,
+    Camera, CoreError, Environment, RENDER_STACK_BYTES, RayCounts, RenderMode, Scene, TextureFilter, check_depth,
+    check_image_size, check_spp, check_threads,
 };
 
 /// Tile edge in pixels.
@@ -100,6 +100,14 @@ pub struct RenderSettings {
     pub mode: RenderMode,
     /// Largest number of reflection/refraction bounces (Whitted mode).
     pub max_depth: u32,
+    /// Texture filtering (trilinear by default, with ray-cone level of detail).
+    pub texture_filter: TextureFilter,
+    /// Samples per pixel, averaged (at most [`MAX_SPP`](crate::MAX_SPP)).
+    pub spp: u32,
+    /// Index of the first sample: a frame renders samples
+    /// `first_sample..first_sample + spp` of [`sample_offset`]'s sequence,
+    /// so that frames of 1 sample each can be accumulated progressively.
+    pub first_sample: u32,
 }
 
 impl RenderSettings {
@@ -111,7 +119,8 @@ impl RenderSettings {
     /// [`CoreError::Limit`] naming the limit broken.
     pub fn validate(&self, call: &'static str) -> Result<(), CoreError> {
         check_image_size(call, self.width, self.height)?;
-        check_depth(call, self.max_depth)
+        check_depth(call, self.max_depth)?;
+        check_spp(call, self.spp)
     }
 }
 
@@ -122,6 +131,9 @@ impl Default for RenderSettings {
             height: 480,
             mode: RenderMode::Whitted,
             max_depth: 3,
+            texture_filter: TextureFilter::default(),
+            spp: 1,
+            first_sample: 0,
         }
     }
 }
@@ -403,8 +415,16 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) {
         env: &job.env,
         mode: job.settings.mode,
         max_depth: job.settings.max_depth,
+        filter: job.settings.texture_filter,
         counts: RayCounts::default(),
     };
+    let spp = job.settings.spp.max(1);
+    // Each sample's cone covers its share of the pixel.
+    let cone = Cone {
+        width: 0.0,
+        spread: job.cam.pixel_spread() / (spp as f32).sqrt(),
+    };
+    let offsets: Vec<(f32, f32)> = (0..spp).map(|i| sample_offset(job.settings.first_sample + i)).collect();
     let mut done = Vec::new();
     loop {
         let index = job.next.fetch_add(1, Ordering::Relaxed);
@@ -426,16 +446,19 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) {
             (false, _) => {
                 for y in y0..y1 {
                     for x in x0..x1 {
-                        shader.counts.primary += 1;
-                        let c = shader.trace(&job.cam.ray(x, y), 0);
-                        pixels[tile.index(x, y)] = c;
+                        let mut sum = Vec3::ZERO;
+                        for &(ox, oy) in &offsets {
+                            shader.counts.primary += 1;
+                            sum += shader.trace(&job.cam.ray_at(x, y, ox, oy), cone, 0);
+                        }
+                        pixels[tile.index(x, y)] = average(sum, spp);
                     }
                 }
             }
-            (true, PacketWidth::W4) => packet_tile::<4, T>(&mut shader, job, tile, &mut pixels),
-            (true, PacketWidth::W8) => packet_tile::<8, T>(&mut shader, job, tile, &mut pixels),
+            (true, PacketWidth::W4) => packet_tile::<4, T>(&mut shader, job, tile, cone, &offsets, &mut pixels),
+            (true, PacketWidth::W8) => packet_tile::<8, T>(&mut shader, job, tile, cone, &offsets, &mut pixels),
             (true, PacketWidth::W16) => {
-                packet_tile::<16, T>(&mut shader, job, tile, &mut pixels);
+                packet_tile::<16, T>(&mut shader, job, tile, cone, &offsets, &mut pixels);
             }
         }
         for p in &mut pixels {
@@ -482,8 +505,16 @@ pub const fn packet_block(n: usize) -> (u32, u32) {
 /// [`Shader::trace_packet`]. Every pixel gets the bytes the single-ray path
 /// gives it: the packet queries answer each lane as the single-ray queries
 /// do, and the shading is the same code.
-fn packet_tile<const N: usize, T: Tracer>(shader: &mut Shader<'_, T>, job: &FrameJob, tile: Tile, pixels: &mut [Vec3]) {
+fn packet_tile<const N: usize, T: Tracer>(
+    shader: &mut Shader<'_, T>,
+    job: &FrameJob,
+    tile: Tile,
+    cone: Cone,
+    offsets: &[(f32, f32)],
+    pixels: &mut [Vec3],
+) {
     let (bw, bh) = packet_block(N);
+    let cones = [cone; N];
     for by in (tile.y0..tile.y1).step_by(bh as usize) {
         for bx in (tile.x0..tile.x1).step_by(bw as usize) {
             let mut at = [(0u32, 0u32); N];
@@ -495,12 +526,39 @@ fn packet_tile<const N: usize, T: Tracer>(shader: &mut Shader<'_, T>, job: &Fram
                     lanes |= 1 << l;
                 }
             }
-            let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray(at[l].0, at[l].1));
-            shader.counts.primary += u64::from(lanes.count_ones());
-            let colors = shader.trace_packet(&rays, lanes, 0);
+            // One packet per sample: the block's rays through the same
+            // sub-pixel position stay coherent.
+            let mut sum = [Vec3::ZERO; N];
+            for &(ox, oy) in offsets {
+                let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray_at(at[l].0, at[l].1, ox, oy));
+                shader.counts.primary += u64::from(lanes.count_ones());
+                let colors = shader.trace_packet(&rays, &cones, lanes, 0);
+                for l in lanes_of(lanes) {
+                    sum[l] += colors[l];
+                }
+            }
             for l in lanes_of(lanes) {
-                pixels[tile.index(at[l].0, at[l].1)] = colors[l];
+                pixels[tile.index(at[l].0, at[l].1)] = average(sum[l], offsets.len() as u32);
             }
         }
     }
+}
+
+/// The mean of `n` samples summed (exactly the sample for one).
+#[inline]
+fn average(sum: Vec3, n: u32) -> Vec3 {
+    if n == 1 { sum } else { sum / n as f32 }
+}
+
+/// Sub-pixel position of sample `i` of every pixel: the R2 low-discrepancy
+/// sequence (Roberts 2018, the plastic-number generalisation of the golden
+/// ratio), started at the pixel centre, so one sample is the centre and
+/// any run of samples `first..first + n` covers the pixel evenly. The
+/// positions depend only on `i`: the bytes are the same for any thread count.
+#[must_use]
+pub fn sample_offset(i: u32) -> (f32, f32) {
+    const G1: f64 = 0.754_877_666_246_692_7;
+    const G2: f64 = 0.569_840_290_998_053_2;
+    let i = f64::from(i);
+    ((0.5 + G1 * i).fract() as f32, (0.5 + G2 * i).fract() as f32)
 }

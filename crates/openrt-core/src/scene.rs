@@ -45,6 +45,10 @@ pub struct Surface {
     /// Largest |coordinate| of the hit triangle's world vertices: the
     /// magnitude that bounds the rounding error of `point` (for ray offsets).
     pub error_scale: f32,
+    /// Twice the area of the hit triangle in texture space (`|duv1 x duv2|`).
+    pub uv_area: f32,
+    /// Twice the area of the hit triangle in world space.
+    pub world_area: f32,
     /// Material of the triangle.
     pub material: MaterialId,
     /// The instance hit.
@@ -307,12 +311,16 @@ impl Scene {
         let point = w[0] * b0 + w[1] * hit.b1 + w[2] * hit.b2;
         let point = if point.is_finite() { point } else { ray.at(hit.t) };
         let error_scale = w.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
+        let uv_area = (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]).abs();
+        let world_area = (w[1] - w[0]).cross(w[2] - w[0]).length();
         Ok(Surface {
             point,
             error_scale,
             geometric_normal,
             shading_normal,
             uv: uv[0] * b0 + uv[1] * hit.b1 + uv[2] * hit.b2,
+            uv_area,
+            world_area,
             material: sh.materials[p],
             instance: inst.id,
             object: inst.object,

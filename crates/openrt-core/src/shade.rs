@@ -4,7 +4,7 @@ use glam::Vec3;
 use openrt_accel::{Ray, lanes_of, sign_groups};
 
 use crate::tracer::Tracer;
-use crate::{Environment, PointLight, Scene, SceneHit, Surface};
+use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
 /// What a frame computes per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -95,7 +95,29 @@ pub(crate) struct Shader<'a, T: Tracer = Scene> {
     pub env: &'a Environment,
     pub mode: RenderMode,
     pub max_depth: u32,
+    pub filter: TextureFilter,
     pub counts: RayCounts,
+}
+
+/// A ray cone (Akenine-Möller et al., "Texture Level of Detail Strategies
+/// for Real-Time Ray Tracing", Ray Tracing Gems, 2019): the width of the
+/// footprint at the ray's origin and its spread angle. Primary rays start
+/// with width 0 and the angle of one pixel (or of one sample); at a hit the
+/// width grows by `spread * distance`, and reflection and refraction rays
+/// carry the width on with the same spread (surfaces are taken as flat:
+/// their curvature does not widen the cone).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Cone {
+    pub width: f32,
+    pub spread: f32,
+}
+
+impl Cone {
+    /// The cone's width where `ray` reaches `t`.
+    #[inline]
+    fn width_at(self, ray: &Ray, t: f32) -> f32 {
+        self.width + self.spread * t * ray.dir.length()
+    }
 }
 
 /// How many back sides of one-sided surfaces a ray may pass before it gives up.
@@ -117,13 +139,15 @@ pub(crate) struct Prepared {
     ns: Vec3,
     /// Origin of rays leaving on the incoming side (shadow and mirror rays).
     p_out: Vec3,
+    /// The ray cone at the hit: its footprint, and the cone of the bounces.
+    cone: Cone,
 }
 
 impl<T: Tracer> Shader<'_, T> {
-    /// Radiance along `ray` (`depth` = number of bounces so far).
-    pub fn trace(&mut self, ray: &Ray, depth: u32) -> Vec3 {
+    /// Radiance along `ray` with its cone (`depth` = number of bounces so far).
+    pub fn trace(&mut self, ray: &Ray, cone: Cone, depth: u32) -> Vec3 {
         let hit = self.tracer.intersect(ray);
-        let Some(prep) = self.prepare(ray, hit) else {
+        let Some(prep) = self.prepare(ray, cone, hit) else {
             return self.env.background;
         };
         // PERF: one bit per light on the stack; a scene with more lights
@@ -157,13 +181,15 @@ impl<T: Tracer> Shader<'_, T> {
     /// surfaces seen from the back are passed through (traced again from
     /// behind them, up to [`MAX_PASS_THROUGH`] times). `None` when the ray
     /// leaves the scene.
-    pub fn prepare(&self, ray: &Ray, first: Option<SceneHit>) -> Option<Prepared> {
+    pub fn prepare(&self, ray: &Ray, cone: Cone, first: Option<SceneHit>) -> Option<Prepared> {
         let scene = self.scene;
         let mut ray = *ray;
         let mut hit = first;
         let mut passes = 0;
+        let mut cone = cone;
         let surf = loop {
             let h = hit?;
+            cone.width = cone.width_at(&ray, h.t);
             // NOTE: the tracer's hits come from this scene, so this never fails.
             let surf = scene.surface(&ray, &h).ok()?;
             let mat = &scene.materials()[surf.material.index() as usize];
@@ -197,6 +223,7 @@ impl<T: Tracer> Shader<'_, T> {
             nf,
             ns,
             p_out,
+            cone,
         })
     }
 
@@ -216,7 +243,7 @@ impl<T: Tracer> Shader<'_, T> {
     pub fn finish(&mut self, prep: &Prepared, blocked: impl Fn(usize) -> bool, depth: u32) -> Vec3 {
         let (mut color, bounces) = self.local(prep, blocked, depth);
         for (weight, ray) in bounces.into_iter().flatten() {
-            color += weight * self.trace(&ray, depth + 1);
+            color += weight * self.trace(&ray, prep.cone, depth + 1);
         }
         color
     }
@@ -232,7 +259,17 @@ impl<T: Tracer> Shader<'_, T> {
         let tex = mat
             .texture
             .and_then(|t| scene.textures().get(t.index() as usize))
-            .map_or(Vec3::ONE, |t| t.sample(surf.uv));
+            .map_or(Vec3::ONE, |t| {
+                if self.filter != TextureFilter::Trilinear {
+                    return t.sample_filtered(surf.uv, 0.0, self.filter);
+                }
+                // Level of detail (ray cones, RTG ch. 20, eq. 34): the texel
+                // to world area ratio of the triangle, the cone's width, and
+                // the obliquity of the hit.
+                let texel_area = surf.uv_area * (t.width() * t.height()) as f32;
+                let lod = 0.5 * (texel_area / surf.world_area).log2() + prep.cone.width.log2() - d.dot(nf).abs().log2();
+                t.sample_filtered(surf.uv, lod, self.filter)
+            });
         let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
         let mut color = self.env.ambient * ka;
         let view = -d;
@@ -288,13 +325,19 @@ impl<T: Tracer> Shader<'_, T> {
     /// refraction rays and the reflection rays, each kind regrouped by
     /// direction signs: when all `N` lanes survive with the same signs they
     /// go on as a packet, otherwise one by one.
-    pub fn trace_packet<const N: usize>(&mut self, rays: &[Ray; N], lanes: u32, depth: u32) -> [Vec3; N] {
+    pub fn trace_packet<const N: usize>(
+        &mut self,
+        rays: &[Ray; N],
+        cones: &[Cone; N],
+        lanes: u32,
+        depth: u32,
+    ) -> [Vec3; N] {
         let hits = self.tracer.intersect_packet(rays, lanes);
         let preps: [Option<Prepared>; N] = std::array::from_fn(|l| {
             if lanes & (1 << l) == 0 {
                 return None;
             }
-            self.prepare(&rays[l], hits[l])
+            self.prepare(&rays[l], cones[l], hits[l])
         });
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
@@ -332,10 +375,12 @@ impl<T: Tracer> Shader<'_, T> {
         #[allow(clippy::needless_range_loop)]
         for k in 0..2 {
             let mut next = *rays;
+            let mut next_cones = *cones;
             let mut mask = 0u32;
             for l in lanes_of(lanes) {
-                if let Some((_, r)) = bounces[l][k] {
+                if let (Some((_, r)), Some(p)) = (bounces[l][k], &preps[l]) {
                     next[l] = r;
+                    next_cones[l] = p.cone;
                     mask |= 1 << l;
                 }
             }
@@ -348,13 +393,13 @@ impl<T: Tracer> Shader<'_, T> {
             let mut alone = mask;
             for g in groups.into_iter().filter(|g| g.count_ones() as usize == N) {
                 alone &= !g;
-                let c = self.trace_packet(&next, g, depth + 1);
+                let c = self.trace_packet(&next, &next_cones, g, depth + 1);
                 for l in lanes_of(g) {
                     color[l] += bounces[l][k].map_or(Vec3::ZERO, |b| b.0) * c[l];
                 }
             }
             for l in lanes_of(alone) {
-                let c = self.trace(&next[l], depth + 1);
+                let c = self.trace(&next[l], next_cones[l], depth + 1);
                 color[l] += bounces[l][k].map_or(Vec3::ZERO, |b| b.0) * c;
             }
         }

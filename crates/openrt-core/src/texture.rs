@@ -1,48 +1,83 @@
-//! Textures: RGB images sampled with repeat addressing and bilinear filtering.
+//! Textures: RGB images with a mipmap chain, sampled with repeat
+//! addressing and nearest, bilinear or trilinear filtering.
 
 use glam::{Vec2, Vec3};
 
-/// An RGB texture in linear `[0, 1]` values, row 0 at the top (v = 0 at the top row,
-/// as NFF/AFF texture coordinates use it).
+/// How a texture is filtered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum TextureFilter {
+    /// The nearest texel of the full-size image.
+    Nearest,
+    /// Bilinear interpolation of the full-size image.
+    Bilinear,
+    /// Bilinear in the two mipmap levels around the ray cone's level of
+    /// detail, blended (Williams 1983; the level from ray cones after
+    /// Akenine-Möller et al., "Texture Level of Detail Strategies for
+    /// Real-Time Ray Tracing", Ray Tracing Gems, 2019).
+    #[default]
+    Trilinear,
+}
+
+impl TextureFilter {
+    /// Every filter, in order of cost.
+    pub const ALL: [Self; 3] = [Self::Nearest, Self::Bilinear, Self::Trilinear];
+
+    /// The name used on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Nearest => "nearest",
+            Self::Bilinear => "bilinear",
+            Self::Trilinear => "trilinear",
+        }
+    }
+}
+
+impl std::str::FromStr for TextureFilter {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| format!("unknown texture filter '{s}' (nearest, bilinear or trilinear)"))
+    }
+}
+
+/// One level of the mipmap chain.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Texture {
+struct Level {
     width: usize,
     height: usize,
     texels: Vec<Vec3>,
 }
 
-impl Texture {
-    /// A texture from `width * height` texels, row by row; `None` if the
-    /// sizes do not match, a size is zero, or a texel is not finite.
-    #[must_use]
-    pub fn new(width: usize, height: usize, texels: Vec<Vec3>) -> Option<Self> {
-        (width > 0 && height > 0 && texels.len() == width * height && texels.iter().all(|t| t.is_finite()))
-            .then_some(Self { width, height, texels })
-    }
-
-    /// Width in texels.
-    #[must_use]
-    pub fn width(&self) -> usize {
-        self.width
-    }
-
-    /// Height in texels.
-    #[must_use]
-    pub fn height(&self) -> usize {
-        self.height
-    }
-
+impl Level {
     fn texel(&self, x: usize, y: usize) -> Vec3 {
         self.texels[y * self.width + x]
     }
 
-    /// Bilinear sample at `uv` with repeat addressing (any `uv`, also far
-    /// outside `[0, 1]`; non-finite coordinates sample texel (0, 0)).
-    #[must_use]
-    pub fn sample(&self, uv: Vec2) -> Vec3 {
-        if !uv.is_finite() {
-            return self.texels[0];
+    /// The next level: half the size (rounded up), each texel the box
+    /// average of the 2x2 texels above it (an odd last row or column is
+    /// averaged with itself).
+    fn halve(&self) -> Self {
+        let (w, h) = (self.width.div_ceil(2), self.height.div_ceil(2));
+        let mut texels = Vec::with_capacity(w * h);
+        for y in 0..h {
+            let (y0, y1) = (2 * y, (2 * y + 1).min(self.height - 1));
+            for x in 0..w {
+                let (x0, x1) = (2 * x, (2 * x + 1).min(self.width - 1));
+                texels.push((self.texel(x0, y0) + self.texel(x1, y0) + self.texel(x0, y1) + self.texel(x1, y1)) * 0.25);
+            }
         }
+        Self {
+            width: w,
+            height: h,
+            texels,
+        }
+    }
+
+    /// Bilinear sample with repeat addressing; `uv` is finite.
+    fn bilinear(&self, uv: Vec2) -> Vec3 {
         // Texel centres at half-integers; wrap before scaling to keep precision.
         let u = uv.x - uv.x.floor();
         let v = uv.y - uv.y.floor();
@@ -57,6 +92,97 @@ impl Texture {
         let top = self.texel(xa, ya).lerp(self.texel(xb, ya), fx);
         let bottom = self.texel(xa, yb).lerp(self.texel(xb, yb), fx);
         top.lerp(bottom, fy)
+    }
+
+    /// The texel holding `uv`; `uv` is finite.
+    fn nearest(&self, uv: Vec2) -> Vec3 {
+        let u = uv.x - uv.x.floor();
+        let v = uv.y - uv.y.floor();
+        let x = wrap((u * self.width as f32).floor() as i64, self.width as i64);
+        let y = wrap((v * self.height as f32).floor() as i64, self.height as i64);
+        self.texel(x, y)
+    }
+}
+
+/// An RGB texture in linear `[0, 1]` values, row 0 at the top (v = 0 at the
+/// top row, as NFF/AFF texture coordinates use it), with its mipmap chain
+/// down to 1x1, built once when the texture is made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    levels: Vec<Level>,
+}
+
+impl Texture {
+    /// A texture from `width * height` texels, row by row; `None` if the
+    /// sizes do not match, a size is zero, or a texel is not finite.
+    #[must_use]
+    pub fn new(width: usize, height: usize, texels: Vec<Vec3>) -> Option<Self> {
+        if !(width > 0 && height > 0 && texels.len() == width * height && texels.iter().all(|t| t.is_finite())) {
+            return None;
+        }
+        let mut levels = vec![Level { width, height, texels }];
+        while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
+            let next = last.halve();
+            levels.push(next);
+        }
+        Some(Self { levels })
+    }
+
+    /// Width in texels.
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.levels[0].width
+    }
+
+    /// Height in texels.
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.levels[0].height
+    }
+
+    /// Number of mipmap levels (1 for a 1x1 texture).
+    #[must_use]
+    pub fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Bilinear sample of the full-size image at `uv` with repeat addressing
+    /// (any `uv`, also far outside `[0, 1]`; non-finite coordinates sample
+    /// texel (0, 0)).
+    #[must_use]
+    pub fn sample(&self, uv: Vec2) -> Vec3 {
+        if !uv.is_finite() {
+            return self.levels[0].texels[0];
+        }
+        self.levels[0].bilinear(uv)
+    }
+
+    /// A filtered sample at `uv` for a footprint of level of detail `lod`
+    /// (log2 of the footprint's width in full-size texels; 0 or less is
+    /// magnification). Nearest and bilinear ignore `lod`; a NaN `lod` means 0.
+    #[must_use]
+    pub fn sample_filtered(&self, uv: Vec2, lod: f32, filter: TextureFilter) -> Vec3 {
+        if !uv.is_finite() {
+            return self.levels[0].texels[0];
+        }
+        match filter {
+            TextureFilter::Nearest => self.levels[0].nearest(uv),
+            TextureFilter::Bilinear => self.levels[0].bilinear(uv),
+            TextureFilter::Trilinear => {
+                let top = (self.levels.len() - 1) as f32;
+                // NOTE: max/min, not clamp: a NaN lod becomes 0.
+                let lod = lod.max(0.0).min(top);
+                let base = lod.floor();
+                let f = lod - base;
+                let i = base as usize;
+                let a = self.levels[i].bilinear(uv);
+                if f == 0.0 || i + 1 >= self.levels.len() {
+                    a
+                } else {
+                    a.lerp(self.levels[i + 1].bilinear(uv), f)
+                }
+            }
+        }
     }
 }
 
@@ -97,6 +223,48 @@ mod tests {
 
     fn checker() -> Texture {
         Texture::new(2, 2, vec![Vec3::ZERO, Vec3::ONE, Vec3::ONE, Vec3::ZERO]).unwrap()
+    }
+
+    #[test]
+    fn mipmaps_average_and_trilinear_blends_between_levels() {
+        // A 4x2 stripe texture: columns alternate black and white.
+        let texels = (0..8)
+            .map(|i| if i % 2 == 0 { Vec3::ZERO } else { Vec3::ONE })
+            .collect();
+        let t = super::Texture::new(4, 2, texels).unwrap();
+        assert_eq!(t.levels(), 3, "4x2, 2x1, 1x1");
+        let uv = Vec2::new(0.125, 0.25);
+        assert_eq!(
+            t.sample_filtered(uv, -3.0, super::TextureFilter::Trilinear),
+            t.sample(uv)
+        );
+        // Level 1 and below: the stripes averaged to grey.
+        assert_eq!(
+            t.sample_filtered(uv, 1.0, super::TextureFilter::Trilinear),
+            Vec3::splat(0.5)
+        );
+        assert_eq!(
+            t.sample_filtered(uv, 9.0, super::TextureFilter::Trilinear),
+            Vec3::splat(0.5)
+        );
+        let half = t.sample_filtered(uv, 0.5, super::TextureFilter::Trilinear);
+        assert_eq!(half, t.sample(uv).lerp(Vec3::splat(0.5), 0.5));
+        assert_eq!(
+            t.sample_filtered(uv, f32::NAN, super::TextureFilter::Trilinear),
+            t.sample(uv)
+        );
+        assert_eq!(t.sample_filtered(uv, 5.0, super::TextureFilter::Nearest), Vec3::ZERO);
+        assert_eq!(
+            t.sample_filtered(Vec2::new(0.3, 0.9), 0.0, super::TextureFilter::Nearest),
+            Vec3::ONE
+        );
+        // Odd sizes: 3x1 halves to 2x1 (the last column averaged with itself), then 1x1.
+        let t = super::Texture::new(3, 1, vec![Vec3::ZERO, Vec3::ONE, Vec3::splat(0.25)]).unwrap();
+        assert_eq!(t.levels(), 3);
+        assert_eq!(
+            t.sample_filtered(Vec2::new(0.75, 0.5), 1.0, super::TextureFilter::Trilinear),
+            Vec3::splat(0.25)
+        );
     }
 
     #[test]

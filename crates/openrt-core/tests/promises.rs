@@ -224,6 +224,7 @@ fn render_limits_are_errors_and_the_deepest_recursion_fits() {
         height,
         mode: RenderMode::Whitted,
         max_depth,
+        ..RenderSettings::default()
     };
     for (s, limit) in [
         (settings(MAX_IMAGE_SIDE + 1, 8, 3), u64::from(MAX_IMAGE_SIDE)),

@@ -135,6 +135,7 @@ fn render(ctx: &Context, cam: &Camera, env: Environment, threads: usize, w: u32,
         height: h,
         mode,
         max_depth: 3,
+        ..RenderSettings::default()
     };
     r.render(&ctx.scene(), &Arc::new(env), cam, &settings).unwrap().0
 }
@@ -170,6 +171,7 @@ fn frame_stats_count_rays_by_kind() {
         height: 48,
         mode: RenderMode::Whitted,
         max_depth: 3,
+        ..RenderSettings::default()
     };
     let (_, st) = r.render(&ctx.scene(), &env, &cam, &s).unwrap();
     assert_eq!(st.rays.primary, 64 * 48);

@@ -166,6 +166,7 @@ fn render(
         height: 61,
         mode,
         max_depth: 3,
+        ..RenderSettings::default()
     };
     let env: Arc<Environment> = player.env();
     let (img, stats) = r.render(&player.ctx().scene(), &env, &player.camera(t), &s).unwrap();

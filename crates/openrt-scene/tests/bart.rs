@@ -73,6 +73,7 @@ fn frame(player: &mut AffPlayer, f: u32) -> openrt_core::Image {
         height: 120,
         mode: RenderMode::Whitted,
         max_depth: 3,
+        ..RenderSettings::default()
     };
     Renderer::new(2)
         .expect("a render pool")

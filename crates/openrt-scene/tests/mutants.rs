@@ -118,6 +118,7 @@ fn exercise(path: &Path, renderer: &Renderer) -> Result<(), String> {
             height: 4,
             mode: RenderMode::Whitted,
             max_depth: 3,
+            ..RenderSettings::default()
         };
         match renderer.render(&p.ctx().scene(), &p.env(), &p.camera(t), &settings) {
             Err(CoreError::RenderThread { reason }) => panic!("render thread failed: {reason}"),

@@ -22,6 +22,7 @@ fn render(scene: &Path, mode: RenderMode) -> Image {
         height: 120,
         mode,
         max_depth: 3,
+        ..RenderSettings::default()
     };
     Renderer::new(2)
         .expect("a render pool")
