@@ -17,6 +17,7 @@ mod error;
 pub mod generate;
 mod limits;
 mod loader;
+mod obj;
 mod player;
 mod ron_format;
 mod shapes;
@@ -29,7 +30,8 @@ pub use limits::{
     MAX_INCLUDES, MAX_SCENE_TRIANGLES, MAX_SPHERE_SEGMENTS, MAX_TERRAIN_GRID, MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS,
     MAX_TREE_TRIANGLES, MAX_TREES,
 };
-pub use loader::{LoadedScene, RonScene, load_ron, load_ron_any, load_ron_str, parse_obj};
+pub use loader::{LoadedScene, RonScene, load_ron, load_ron_any, load_ron_str};
+pub use obj::parse_obj;
 pub use player::ScenePlayer;
 pub use ron_format::{
     AnimationDesc, BartDesc, CameraDesc, CameraKeys, GeneratorDesc, InstanceDesc, InstanceKeys, LightDesc,

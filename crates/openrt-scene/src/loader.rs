@@ -280,18 +280,6 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
     )))
 }
 
-/// The models of an OBJ file's bytes, through `tobj` (triangulated, one
-/// index per vertex; `.mtl` files are not read).
-///
-/// # Errors
-/// `tobj`'s error for malformed text.
-pub fn parse_obj(bytes: &[u8]) -> Result<Vec<tobj::Model>, tobj::LoadError> {
-    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &tobj::GPU_LOAD_OPTIONS, |_| {
-        Err(tobj::LoadError::OpenFileFailed)
-    })?;
-    Ok(models)
-}
-
 fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
     let file: SceneFile = ron::from_str(text).map_err(|e| SceneError::Parse {
         path: path.to_path_buf(),
@@ -837,7 +825,7 @@ impl Builder {
                 ctx.material(material(m, name)?).map_err(&core)?;
                 let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
                 let bytes = read_file(&file)?;
-                let models = parse_obj(&bytes).map_err(|e| SceneError::Invalid {
+                let models = crate::obj::parse_obj(&bytes).map_err(|e| SceneError::Invalid {
                     path: file.clone(),
                     what: format!("OBJ file (used by object '{name}' in {}): {e}", self.path.display()),
                 })?;

@@ -316,3 +316,14 @@ fn texture_mutants() {
     });
     check(&report);
 }
+
+/// Fuzz findings, kept as regression tests: each input must give an error
+/// or a scene, never a panic.
+#[test]
+fn fuzz_findings_stay_fixed() {
+    // obj: tobj 4.0.5 multiplied an out-of-range relative texture index
+    // unchecked (overflow panic in debug builds).
+    let obj = std::fs::read(data().join("fuzz-obj-tobj-overflow.obj")).unwrap();
+    let e = openrt_scene::parse_obj(&obj).unwrap_err();
+    assert!(e.contains("texture coordinate index"), "{e}");
+}
