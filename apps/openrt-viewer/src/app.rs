@@ -12,12 +12,17 @@ use openrt_core::{Backend, Camera, RenderMode, RenderSettings};
 use crate::orbit;
 use crate::worker::{FrameResult, Reply, Request, SceneInfo, Worker};
 
+/// Samples per pixel that a still view refines to, one frame each.
+const PROGRESSIVE_SAMPLES: u32 = 64;
+
 /// Options from the command line.
 pub struct Options {
     pub scene: Option<PathBuf>,
     pub screenshot: Option<PathBuf>,
     pub frames: u32,
     pub threads: usize,
+    /// With `screenshot`: keep the view still (refine it) instead of playing.
+    pub still: bool,
     /// Set to the error that ends a `--screenshot` run (the exit status).
     pub failure: Arc<Mutex<Option<String>>>,
 }
@@ -53,6 +58,11 @@ pub struct ViewerApp {
     frames_rendered: u64,
     frame_times: Vec<f64>,
     last_frame_at: Instant,
+    // Progressive refinement while nothing changes: the sum of the frames
+    // of one view (time, camera, settings), one sample each.
+    accum: Vec<glam::Vec3>,
+    accum_samples: u32,
+    accum_key: Option<(u32, Camera, RenderSettings)>,
     // Headless screenshot mode.
     screenshot: Option<PathBuf>,
     screenshot_after: u32,
@@ -81,7 +91,7 @@ impl ViewerApp {
             in_flight: false,
             dirty: true,
             time: 0.0,
-            playing: opts.screenshot.is_some(),
+            playing: opts.screenshot.is_some() && !opts.still,
             speed: 1.0,
             looping: true,
             follow_scene_camera: true,
@@ -95,6 +105,9 @@ impl ViewerApp {
             frames_rendered: 0,
             frame_times: Vec::new(),
             last_frame_at: Instant::now(),
+            accum: Vec::new(),
+            accum_samples: 0,
+            accum_key: None,
             screenshot: opts.screenshot,
             screenshot_after: opts.frames.max(1),
             screenshot_requested: false,
@@ -117,19 +130,41 @@ impl ViewerApp {
         }
     }
 
-    fn request_frame(&mut self) {
-        if self.in_flight || self.info.is_none() {
-            return;
-        }
+    /// The settings of the next frame (its first sample aside).
+    fn wanted_settings(&self) -> RenderSettings {
         let base = self.scene_settings();
         let s = self.effective_scale();
-        let settings = RenderSettings {
+        RenderSettings {
             width: ((base.width as f32 * s) as u32).max(8),
             height: ((base.height as f32 * s) as u32).max(8),
             mode: self.mode,
             max_depth: self.depth,
             ..RenderSettings::default()
-        };
+        }
+    }
+
+    /// `true` when the last frame shows the current view and the next
+    /// request may add a sample to it: nothing moves or plays.
+    fn can_refine(&self) -> bool {
+        !self.playing
+            && Instant::now() >= self.moving_until
+            && self.accum_samples > 0
+            && self.accum_samples < PROGRESSIVE_SAMPLES
+            && self.accum_key.is_some_and(|(t, cam, s)| {
+                t == self.time.to_bits()
+                    && (self.follow_scene_camera || Some(cam) == self.camera)
+                    && s == self.wanted_settings()
+            })
+    }
+
+    fn request_frame(&mut self) {
+        if self.in_flight || self.info.is_none() {
+            return;
+        }
+        let mut settings = self.wanted_settings();
+        if self.can_refine() {
+            settings.first_sample = self.accum_samples;
+        }
         let camera = if self.follow_scene_camera { None } else { self.camera };
         let req = Request::Render {
             time: self.time,
@@ -189,10 +224,35 @@ impl ViewerApp {
                         self.frame_times.remove(0);
                     }
                     self.last_frame_at = now;
-                    let img = egui::ColorImage::from_rgb(
-                        [f.image.width as usize, f.image.height as usize],
-                        &f.image.to_rgb8(),
+                    let key = (
+                        f.time.to_bits(),
+                        f.camera,
+                        RenderSettings {
+                            first_sample: 0,
+                            ..f.settings
+                        },
                     );
+                    if f.settings.first_sample > 0
+                        && self.accum_key == Some(key)
+                        && f.settings.first_sample == self.accum_samples
+                    {
+                        for (a, p) in self.accum.iter_mut().zip(&f.image.pixels) {
+                            *a += *p;
+                        }
+                        self.accum_samples += 1;
+                    } else {
+                        self.accum.clone_from(&f.image.pixels);
+                        self.accum_samples = 1;
+                        self.accum_key = Some(key);
+                    }
+                    let n = self.accum_samples as f32;
+                    let shown = openrt_core::Image {
+                        width: f.image.width,
+                        height: f.image.height,
+                        pixels: self.accum.iter().map(|p| *p / n).collect(),
+                    };
+                    let img =
+                        egui::ColorImage::from_rgb([shown.width as usize, shown.height as usize], &shown.to_rgb8());
                     match &mut self.texture {
                         Some(t) => t.set(img, egui::TextureOptions::LINEAR),
                         None => self.texture = Some(ctx.load_texture("frame", img, egui::TextureOptions::LINEAR)),
@@ -244,9 +304,10 @@ impl ViewerApp {
         };
         let r = f.stats.rays;
         format!(
-            "{fps:.1} fps | {:.2} Mrays/s | {} frames rendered\nrays: primary {} shadow {} reflection {} refraction {}\ncommit {:.2} ms: top-level {:.3} ms{}, fast {} ({:.2} ms), SAH {} ({:.2} ms), promoted {}\n{} instances, {} objects, {} triangles | {}x{} | t = {:.3}",
+            "{fps:.1} fps | {:.2} Mrays/s | {} frames rendered | {} of {PROGRESSIVE_SAMPLES} samples\nrays: primary {} shadow {} reflection {} refraction {}\ncommit {:.2} ms: top-level {:.3} ms{}, fast {} ({:.2} ms), SAH {} ({:.2} ms), promoted {}\n{} instances, {} objects, {} triangles | {}x{} | t = {:.3}",
             f.stats.mrays_per_s,
             self.frames_rendered,
+            self.accum_samples,
             r.primary,
             r.shadow,
             r.reflection,
@@ -525,10 +586,14 @@ impl eframe::App for ViewerApp {
         {
             self.dirty = true;
         }
+        // Refine sample by sample while the view stays still.
+        if !self.in_flight && self.can_refine() {
+            self.dirty = true;
+        }
         if self.dirty {
             self.request_frame();
         }
-        if self.playing || self.in_flight || Instant::now() < self.moving_until {
+        if self.playing || self.in_flight || Instant::now() < self.moving_until || self.can_refine() {
             ctx.request_repaint();
         }
     }

@@ -30,6 +30,9 @@ struct Cli {
     /// Frames to render before the screenshot.
     #[arg(long, default_value_t = 10)]
     frames: u32,
+    /// With `--screenshot`: hold the first frame still, so that each frame adds a sample, instead of playing.
+    #[arg(long, requires = "screenshot")]
+    still: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -53,6 +56,7 @@ fn main() -> std::process::ExitCode {
         screenshot: cli.screenshot,
         frames: cli.frames,
         threads,
+        still: cli.still,
         failure: Arc::clone(&failure),
     };
     match eframe::run_native(

@@ -48,6 +48,8 @@ pub struct FrameResult {
     pub commit: CommitStats,
     pub camera: Camera,
     pub time: f32,
+    /// The settings it was rendered with (its samples among them).
+    pub settings: RenderSettings,
     pub objects: usize,
     pub instances: usize,
     pub triangles: usize,
@@ -188,6 +190,7 @@ fn render(
         commit,
         camera,
         time,
+        settings: *settings,
         objects: objects.len(),
         instances: scene.instances().len(),
         triangles: scene.instanced_triangles(),

@@ -126,3 +126,35 @@ fn a_broken_scene_ends_a_screenshot_run_with_its_error() {
             || String::from_utf8_lossy(&out.stderr).contains("thread count")
     );
 }
+
+/// A still view refines sample by sample: with `--still`, each frame adds
+/// one sample, and the overlay reports the count.
+#[test]
+fn a_still_view_accumulates_one_sample_per_frame() {
+    if Command::new("xvfb-run").arg("--help").output().is_err() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "xvfb-run not found (apt-get install xvfb)"
+        );
+        println!("skipped: xvfb-run not found");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let shot = dir.path().join("still.png");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/textured.ron");
+    let status = Command::new("timeout")
+        .args(["120", "xvfb-run", "-a", "-s", "-screen 0 1100x700x24"])
+        .arg(env!("CARGO_BIN_EXE_openrt-viewer"))
+        .arg(&scene)
+        .args(["--threads", "1", "--frames", "5", "--still", "--screenshot"])
+        .arg(&shot)
+        .env("LIBGL_ALWAYS_SOFTWARE", "1")
+        .status()
+        .expect("running the viewer");
+    assert!(status.success(), "{status}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(shot.with_extension("json")).unwrap()).unwrap();
+    let overlay = report["overlay"].as_str().unwrap();
+    let frames = report["frames_rendered"].as_u64().unwrap();
+    assert!(overlay.contains(&format!("{frames} of 64 samples")), "{overlay}");
+}

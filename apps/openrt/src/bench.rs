@@ -9,7 +9,7 @@ use glam::Vec3;
 use openrt_accel::oracle::BruteForce;
 use openrt_accel::{BuilderKind, Hit};
 use openrt_accel::{PacketWidth, Ray};
-use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, offset_ray_origin};
+use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, offset_ray_origin};
 use openrt_scene::ScenePlayer;
 
 /// Options of a benchmark run.
@@ -374,29 +374,31 @@ fn rmse_psnr(a: &Image, b: &Image) -> (f64, f64) {
     (mse.sqrt(), if mse > 0.0 { -10.0 * mse.log10() } else { f64::INFINITY })
 }
 
-/// Nearest-neighbour upsampling to `w` x `h`.
+/// Nearest-neighbour upsampling to `w` x `h` (`image::imageops::resize`).
 fn upsample(img: &Image, w: u32, h: u32) -> Image {
-    let mut pixels = Vec::with_capacity((w * h) as usize);
-    for y in 0..h {
-        for x in 0..w {
-            let sx = (x * img.width / w).min(img.width - 1);
-            let sy = (y * img.height / h).min(img.height - 1);
-            pixels.push(img.pixels[(sy * img.width + sx) as usize]);
-        }
-    }
+    let buf: image::Rgb32FImage = image::ImageBuffer::from_fn(img.width, img.height, |x, y| {
+        image::Rgb(img.pixels[(y * img.width + x) as usize].to_array())
+    });
+    let big = image::imageops::resize(&buf, w, h, image::imageops::FilterType::Nearest);
     Image {
         width: w,
         height: h,
-        pixels,
+        pixels: big.pixels().map(|p| Vec3::from_array(p.0)).collect(),
     }
 }
 
 struct Quality {
+    scene: String,
     label: String,
     ms: f64,
     rmse: f64,
     psnr: f64,
 }
+
+/// Samples per pixel of the speed-against-error reference.
+const REFERENCE_SPP: u32 = 64;
+/// PSNR that counts as "close to the reference" in the report.
+const CLOSE_DB: f64 = 35.0;
 
 fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<Quality>, String> {
     let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
@@ -408,21 +410,44 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
     let (cam, env) = (player.camera(t), player.env());
     let threads = *o.threads.iter().max().unwrap_or(&1);
     let r = Renderer::new(threads).map_err(|e| e.to_string())?;
-    let full = settings(o, RenderMode::Whitted, 8);
+    let full = RenderSettings {
+        spp: REFERENCE_SPP,
+        texture_filter: TextureFilter::Trilinear,
+        ..settings(o, RenderMode::Whitted, 8)
+    };
+    let start = Instant::now();
     let (reference, _) = r.render(&scene, &env, &cam, &full).map_err(|e| e.to_string())?;
+    let reference_s = start.elapsed().as_secs_f64();
     let mut q = Vec::new();
+    let d3 = settings(o, RenderMode::Whitted, 3);
     let cases: Vec<(String, RenderSettings)> = vec![
         ("GL-like".into(), settings(o, RenderMode::GlLike, 0)),
         ("shadows only (depth 0)".into(), settings(o, RenderMode::Whitted, 0)),
         ("Whitted depth 1".into(), settings(o, RenderMode::Whitted, 1)),
         ("Whitted depth 2".into(), settings(o, RenderMode::Whitted, 2)),
-        ("Whitted depth 3".into(), settings(o, RenderMode::Whitted, 3)),
+        ("Whitted depth 3 (trilinear, 1 spp)".into(), d3),
+        (
+            "depth 3, nearest".into(),
+            RenderSettings {
+                texture_filter: TextureFilter::Nearest,
+                ..d3
+            },
+        ),
+        (
+            "depth 3, bilinear".into(),
+            RenderSettings {
+                texture_filter: TextureFilter::Bilinear,
+                ..d3
+            },
+        ),
+        ("depth 3, 4 spp".into(), RenderSettings { spp: 4, ..d3 }),
+        ("depth 3, 16 spp".into(), RenderSettings { spp: 16, ..d3 }),
         (
             "depth 3, 1/2 resolution".into(),
             RenderSettings {
                 width: o.width / 2,
                 height: o.height / 2,
-                ..settings(o, RenderMode::Whitted, 3)
+                ..d3
             },
         ),
         (
@@ -430,26 +455,116 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
             RenderSettings {
                 width: o.width / 4,
                 height: o.height / 4,
-                ..settings(o, RenderMode::Whitted, 3)
+                ..d3
             },
         ),
     ];
+    let mut worst: Option<(f64, String, Image)> = None;
     for (label, s) in cases {
         let mut times = Vec::new();
         let mut img = None;
-        for _ in 0..3 {
+        // Multi-sample rows take long enough to be timed once.
+        for _ in 0..if s.spp > 1 { 1 } else { 3 } {
             let (im, st) = r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?;
             times.push(st.render_ms);
             img = Some(im);
         }
         let img = upsample(&img.expect("rendered"), o.width, o.height);
         let (rmse, psnr) = rmse_psnr(&reference, &img);
+        if worst.as_ref().is_none_or(|w| rmse > w.0) {
+            worst = Some((rmse, label.clone(), img));
+        }
         q.push(Quality {
+            scene: name.to_string(),
             label,
             ms: median(times),
             rmse,
             psnr,
         });
+    }
+    let _ = writeln!(
+        out,
+        "
+### {name} (frame {f})
+
+Reference: Whitted depth 8, {REFERENCE_SPP} samples per pixel, trilinear textures ({reference_s:.0} s to render). Every row differs from the default (Whitted depth 3, 1 sample per pixel, trilinear) in one setting; lower resolutions are upsampled (nearest) before comparison.
+
+| setting | render ms | RMSE | PSNR dB |
+|---|---:|---:|---:|"
+    );
+    for x in &q {
+        let _ = writeln!(out, "| {} | {:.1} | {:.4} | {:.1} |", x.label, x.ms, x.rmse, x.psnr);
+    }
+    match q
+        .iter()
+        .filter(|x| x.psnr >= CLOSE_DB)
+        .min_by(|a, b| a.ms.total_cmp(&b.ms))
+    {
+        Some(c) => {
+            let _ = writeln!(
+                out,
+                "
+The cheapest setting within {CLOSE_DB} dB of the reference: **{}** ({:.1} ms, {:.1} dB).",
+                c.label, c.ms, c.psnr
+            );
+        }
+        None => {
+            let best = q.iter().max_by(|a, b| a.psnr.total_cmp(&b.psnr));
+            let _ = writeln!(
+                out,
+                "
+No setting is within {CLOSE_DB} dB of the reference; the closest is {}.",
+                best.map_or("-".into(), |b| format!(
+                    "{} ({:.1} dB, {:.1} ms)",
+                    b.label, b.psnr, b.ms
+                ))
+            );
+        }
+    }
+    let row = |l: &str| q.iter().find(|x| x.label.starts_with(l));
+    if let (Some(tri), Some(bi)) = (row("Whitted depth 3 (trilinear"), row("depth 3, bilinear")) {
+        let (e, c) = (tri.rmse / bi.rmse, tri.ms / bi.ms);
+        let goal = if name == "robots" {
+            format!(
+                " (goal for the robots: error at most x0.5 for at most x1.15: {})",
+                if e <= 0.5 && c <= 1.15 { "met" } else { "**not met**" }
+            )
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            out,
+            "Trilinear against bilinear at 1 sample: error x{e:.2}, frame time x{c:.2}{goal}."
+        );
+    }
+    if let Some((rmse, label, img)) = worst {
+        let file = format!("bench-diff-{name}.png");
+        let diff: Vec<u8> = img
+            .pixels
+            .iter()
+            .zip(&reference.pixels)
+            .flat_map(|(a, b)| {
+                let d = (a.clamp(Vec3::ZERO, Vec3::ONE) - b.clamp(Vec3::ZERO, Vec3::ONE)).abs() * 4.0;
+                d.to_array().map(|c| (c.min(1.0) * 255.0) as u8)
+            })
+            .collect();
+        let path = o.out.with_file_name(&file);
+        match image::save_buffer(&path, &diff, o.width, o.height, image::ColorType::Rgb8) {
+            Ok(()) => {
+                let _ = writeln!(
+                    out,
+                    "
+The worst row, {label} (RMSE {rmse:.4}), against the reference, differences x4:\n\n![{name}: worst row against the reference]({file})"
+                );
+            }
+            Err(e) => {
+                let _ = writeln!(
+                    out,
+                    "
+(difference image not written: {e})"
+                );
+            }
+        }
     }
     // Numerical error of the accelerated path: sampled primary rays against the f64 oracle.
     let (world, origin) = scene.world_triangles();
@@ -627,7 +742,7 @@ fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
     let max_err = q.iter().map(|x| x.rmse).fold(0.01, f64::max) * 1.15;
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            "frame time against error (RMSE vs full-depth reference)",
+            "frame time against error (RMSE vs a 64-spp depth-8 reference)",
             ("sans-serif", 18),
         )
         .margin(12)
@@ -645,7 +760,7 @@ fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
         .draw_series(q.iter().map(|x| {
             EmptyElement::at((x.ms, x.rmse))
                 + Circle::new((0, 0), 4, BLUE.filled())
-                + Text::new(x.label.clone(), (6, -6), ("sans-serif", 12))
+                + Text::new(format!("{}: {}", x.scene, x.label), (6, -6), ("sans-serif", 10))
         }))
         .map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())
@@ -907,20 +1022,22 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
         "- ray throughput against Embree: single mesh in docs/PERFORMANCE.md (`cargo bench -p openrt-accel --bench kdtree --features embree`, which measures it); two-level scenes in the side-by-side table below."
     );
 
-    // Speed against error.
-    let err_scene = o.scenes.first().cloned().unwrap_or_else(|| "kitchen".into());
-    eprintln!("bench: speed against error on {err_scene}");
-    let mut extra = String::new();
-    let q = speed_vs_error(o, &err_scene, &mut extra)?;
-    let _ = writeln!(
-        md,
-        "\n## Speed against error ({err_scene}, middle frame)\n\nReference: Whitted depth 8 at {}x{}. Lower resolutions are upsampled (nearest) before comparison.\n\n| setting | render ms | RMSE | PSNR dB |\n|---|---:|---:|---:|",
-        o.width, o.height
-    );
-    for x in &q {
-        let _ = writeln!(md, "| {} | {:.1} | {:.4} | {:.1} |", x.label, x.ms, x.rmse, x.psnr);
+    // Speed against error: the kitchen and the robots (or the first scene).
+    let mut err_scenes: Vec<String> = o
+        .scenes
+        .iter()
+        .filter(|s| s.as_str() == "kitchen" || s.as_str() == "robots")
+        .cloned()
+        .collect();
+    if err_scenes.is_empty() {
+        err_scenes.extend(o.scenes.first().cloned());
     }
-    md.push_str(&extra);
+    let _ = writeln!(md, "\n## Speed against error (middle frame, {}x{})", o.width, o.height);
+    let mut q = Vec::new();
+    for s in &err_scenes {
+        eprintln!("bench: speed against error on {s}");
+        q.extend(speed_vs_error(o, s, &mut md)?);
+    }
     if let Some(m) = o.scenes.iter().find(|s| s.starts_with("museum")) {
         let name = if o.scenes.iter().any(|s| s == "museum16k") {
             "museum16k"

@@ -222,3 +222,44 @@ fn backends_parse_from_their_names() {
     let e = "embree-x".parse::<Backend>().unwrap_err();
     assert!(e.contains("kd-single"), "{e}");
 }
+
+/// Several samples per pixel and every texture filter: packets and single
+/// rays, 1 and 2 threads, give the same bytes; more samples change the image.
+#[test]
+fn samples_and_filters_render_the_same_bytes_on_both_kd_backends() {
+    let mut p = ScenePlayer::open(Some(&repo().join("scenes/textured.ron"))).unwrap();
+    p.set_time(p.time_of(0)).unwrap();
+    let env: Arc<Environment> = p.env();
+    let cam = p.camera(p.time_of(0));
+    let image = |backend: Backend, threads: usize, spp: u32, filter: openrt_core::TextureFilter| {
+        let mut r = Renderer::new(threads).expect("a render pool");
+        r.set_backend(backend);
+        let s = RenderSettings {
+            width: 61,
+            height: 45,
+            texture_filter: filter,
+            spp,
+            ..RenderSettings::default()
+        };
+        let (img, stats) = r.render(&p.ctx().scene(), &env, &cam, &s).unwrap();
+        assert_eq!(stats.rays.primary, 61 * 45 * u64::from(spp));
+        img.to_rgb8()
+    };
+    let mut seen = Vec::new();
+    for filter in openrt_core::TextureFilter::ALL {
+        for spp in [1, 4] {
+            let want = image(Backend::KdSingle, 1, spp, filter);
+            assert_eq!(image(Backend::Kd, 2, spp, filter), want, "{filter:?}, {spp} spp");
+            assert_eq!(
+                image(Backend::KdSingle, 2, spp, filter),
+                want,
+                "{filter:?}, {spp} spp, 2 threads"
+            );
+            assert!(
+                !seen.contains(&want),
+                "{filter:?}, {spp} spp: the same image as another setting"
+            );
+            seen.push(want);
+        }
+    }
+}
