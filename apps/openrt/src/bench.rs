@@ -484,42 +484,31 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
     }
     let _ = writeln!(
         out,
-        "
-### {name} (frame {f})
-
-Reference: Whitted depth 8, {REFERENCE_SPP} samples per pixel, trilinear textures ({reference_s:.0} s to render). Every row differs from the default (Whitted depth 3, 1 sample per pixel, trilinear) in one setting; lower resolutions are upsampled (nearest) before comparison.
-
-| setting | render ms | RMSE | PSNR dB |
-|---|---:|---:|---:|"
+        "\n### {name} (frame {f})\n\nReference: Whitted depth 8, {REFERENCE_SPP} samples per pixel, trilinear textures ({reference_s:.0} s to render). Every row differs from the default (Whitted depth 3, 1 sample per pixel, trilinear) in one setting; lower resolutions are upsampled (nearest) before comparison.\n\n| setting | render ms | RMSE | PSNR dB |\n|---|---:|---:|---:|"
     );
     for x in &q {
         let _ = writeln!(out, "| {} | {:.1} | {:.4} | {:.1} |", x.label, x.ms, x.rmse, x.psnr);
     }
-    match q
+    let cheapest = q
         .iter()
         .filter(|x| x.psnr >= CLOSE_DB)
-        .min_by(|a, b| a.ms.total_cmp(&b.ms))
-    {
-        Some(c) => {
-            let _ = writeln!(
-                out,
-                "
-The cheapest setting within {CLOSE_DB} dB of the reference: **{}** ({:.1} ms, {:.1} dB).",
-                c.label, c.ms, c.psnr
-            );
-        }
-        None => {
-            let best = q.iter().max_by(|a, b| a.psnr.total_cmp(&b.psnr));
-            let _ = writeln!(
-                out,
-                "
-No setting is within {CLOSE_DB} dB of the reference; the closest is {}.",
-                best.map_or("-".into(), |b| format!(
-                    "{} ({:.1} dB, {:.1} ms)",
-                    b.label, b.psnr, b.ms
-                ))
-            );
-        }
+        .min_by(|a, b| a.ms.total_cmp(&b.ms));
+    if let Some(c) = cheapest {
+        let _ = writeln!(
+            out,
+            "\nThe cheapest setting within {CLOSE_DB} dB of the reference: **{}** ({:.1} ms, {:.1} dB).",
+            c.label, c.ms, c.psnr
+        );
+    } else {
+        let best = q.iter().max_by(|a, b| a.psnr.total_cmp(&b.psnr));
+        let _ = writeln!(
+            out,
+            "\nNo setting is within {CLOSE_DB} dB of the reference; the closest is {}.",
+            best.map_or("-".into(), |b| format!(
+                "{} ({:.1} dB, {:.1} ms)",
+                b.label, b.psnr, b.ms
+            ))
+        );
     }
     let row = |l: &str| q.iter().find(|x| x.label.starts_with(l));
     if let (Some(tri), Some(bi)) = (row("Whitted depth 3 (trilinear"), row("depth 3, bilinear")) {
@@ -553,16 +542,11 @@ No setting is within {CLOSE_DB} dB of the reference; the closest is {}.",
             Ok(()) => {
                 let _ = writeln!(
                     out,
-                    "
-The worst row, {label} (RMSE {rmse:.4}), against the reference, differences x4:\n\n![{name}: worst row against the reference]({file})"
+                    "\nThe worst row, {label} (RMSE {rmse:.4}), against the reference, differences x4:\n\n![{name}: worst row against the reference]({file})"
                 );
             }
             Err(e) => {
-                let _ = writeln!(
-                    out,
-                    "
-(difference image not written: {e})"
-                );
+                let _ = writeln!(out, "\n(difference image not written: {e})");
             }
         }
     }
