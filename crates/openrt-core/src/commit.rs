@@ -174,11 +174,11 @@ impl Context {
                 generation: slot.generation,
             };
             if let Some(mesh) = &slot.pending {
-                let builder = if slot.geometry.is_some() {
+                let builder = slot.forced_builder.unwrap_or(if slot.geometry.is_some() {
                     redefinition_builder
                 } else {
                     BuilderKind::Sah
-                };
+                });
                 let t0 = Instant::now();
                 // NOTE: the definition stays pending until phase 2, so the
                 // builder gets a copy (a memcpy, ~1% of a fast build).
@@ -312,7 +312,21 @@ impl Context {
         stats.toplevel_nodes = bsp.nodes().len();
         stats.instances = records.len();
 
-        // Phase 2 cannot fail: it installs what phase 1 built.
+        // Phase 2 cannot fail: it installs what phase 1 built (the change
+        // log reads the definitions first).
+        if self.change_log.is_some() {
+            let swapped: Vec<ObjectId> = self
+                .objects
+                .iter()
+                .enumerate()
+                .filter(|(i, s)| s.alive && s.pending.is_none() && staged[*i].is_some())
+                .map(|(i, s)| ObjectId {
+                    index: i as u32,
+                    generation: s.generation,
+                })
+                .collect();
+            self.log_commit(self.frame + 1, &swapped);
+        }
         self.apply_objects(staged, promote_after, &mut stats);
 
         let materials = if self.materials_dirty {
@@ -358,6 +372,7 @@ impl Context {
                 generation: slot.generation,
             };
             if slot.pending.take().is_some() {
+                slot.forced_builder = None;
                 slot.geometry = new;
                 slot.version += 1;
                 slot.unchanged_commits = 0;

@@ -53,6 +53,27 @@ pub(crate) struct ObjectSlot {
     /// Commits since the geometry last changed.
     pub unchanged_commits: u32,
     pub promotion: Option<Promotion>,
+    /// Recording changes: send the committed geometry in the next set.
+    pub resend: bool,
+    /// A replica builds the pending definition with the master's builder.
+    pub forced_builder: Option<openrt_accel::BuilderKind>,
+}
+
+impl ObjectSlot {
+    /// A slot with nothing in it.
+    pub(crate) fn dead() -> Self {
+        Self {
+            generation: 0,
+            alive: false,
+            pending: None,
+            geometry: None,
+            version: 0,
+            unchanged_commits: 0,
+            promotion: None,
+            resend: false,
+            forced_builder: None,
+        }
+    }
 }
 
 pub(crate) struct InstanceSlot {
@@ -117,6 +138,8 @@ pub struct Context {
     pub(crate) fail_builds: Option<usize>,
     /// Tests: background builds fail.
     pub(crate) fail_promotions: bool,
+    /// What changed since the last commit, when recording ([`Context::record_changes`]).
+    pub(crate) change_log: Option<crate::changes::ChangeLog>,
 }
 
 impl Default for Context {
@@ -148,6 +171,7 @@ impl Context {
             bsp_builder: openrt_accel::BspBuilder::default(),
             fail_builds: None,
             fail_promotions: false,
+            change_log: None,
         }
     }
 
@@ -182,6 +206,8 @@ impl Context {
             version: 0,
             unchanged_commits: 0,
             promotion: None,
+            resend: false,
+            forced_builder: None,
         };
         if let Some(i) = self.free_objects.pop() {
             let slot = &mut self.objects[i as usize];
@@ -297,6 +323,9 @@ impl Context {
             });
         }
         self.object_slot("delete_object", id)?;
+        if let Some(log) = &mut self.change_log {
+            log.deleted.insert(id.index);
+        }
         let slot = &mut self.objects[id.index as usize];
         slot.alive = false;
         slot.pending = None;
@@ -602,13 +631,21 @@ impl Context {
             });
         }
         let transform = check_transform("instantiate", &self.matrices.top())?;
+        let id = self.place(object, transform);
+        if let Some(log) = &mut self.change_log {
+            log.instances.insert(id.index);
+        }
+        Ok(id)
+    }
+
+    fn place(&mut self, object: ObjectId, transform: Affine3A) -> InstanceId {
         let fresh = InstanceSlot {
             generation: 0,
             alive: true,
             object,
             transform,
         };
-        Ok(if let Some(i) = self.free_instances.pop() {
+        if let Some(i) = self.free_instances.pop() {
             let s = &mut self.instances[i as usize];
             let generation = s.generation;
             *s = InstanceSlot { generation, ..fresh };
@@ -619,7 +656,7 @@ impl Context {
                 index: (self.instances.len() - 1) as u32,
                 generation: 0,
             }
-        })
+        }
     }
 
     fn instance_slot_mut(&mut self, call: &'static str, id: InstanceId) -> Result<&mut InstanceSlot, CoreError> {
@@ -633,6 +670,9 @@ impl Context {
     pub fn set_instance_transform(&mut self, id: InstanceId, m: Mat4) -> Result<(), CoreError> {
         let t = check_transform("set_instance_transform", &m)?;
         self.instance_slot_mut("set_instance_transform", id)?.transform = t;
+        if let Some(log) = &mut self.change_log {
+            log.instances.insert(id.index);
+        }
         Ok(())
     }
 
@@ -646,6 +686,9 @@ impl Context {
 
     /// Removes an instance; its id becomes stale.
     pub fn remove_instance(&mut self, id: InstanceId) -> Result<(), CoreError> {
+        if let Some(log) = &mut self.change_log {
+            log.instances.insert(id.index);
+        }
         let s = self.instance_slot_mut("remove_instance", id)?;
         s.alive = false;
         // As for objects: a slot whose generation would wrap is retired.

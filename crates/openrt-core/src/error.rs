@@ -173,6 +173,12 @@ pub enum CoreError {
         /// The hit's triangle.
         prim: u32,
     },
+    /// A change set that does not fit the replica it was given to.
+    #[error("apply_changes: {reason}")]
+    Changes {
+        /// What does not fit.
+        reason: String,
+    },
     /// The render pool could not start a thread, or a render thread failed.
     #[error("render: {reason}")]
     RenderThread {

@@ -71,6 +71,7 @@
 //! ```
 
 mod camera;
+mod changes;
 mod commit;
 mod context;
 #[cfg(feature = "embree")]
@@ -91,6 +92,7 @@ mod texture;
 mod tracer;
 
 pub use camera::{Camera, CameraRays};
+pub use changes::{ChangeSet, InstanceChange, MAX_SLOT_GROWTH, MaterialData, MeshData, ObjectChange, TextureData};
 pub use commit::{BuildRecord, CommitStats};
 pub use context::Context;
 #[cfg(feature = "embree")]

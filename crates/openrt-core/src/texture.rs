@@ -140,6 +140,12 @@ impl Texture {
         self.levels[0].height
     }
 
+    /// The full-size texels, row by row.
+    #[must_use]
+    pub fn texels(&self) -> &[Vec3] {
+        &self.levels[0].texels
+    }
+
     /// Number of mipmap levels (1 for a 1x1 texture).
     #[must_use]
     pub fn levels(&self) -> usize {
