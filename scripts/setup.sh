@@ -5,9 +5,11 @@ set -euo pipefail
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # Debian packages: a C toolchain for -sys crates; Xvfb, Mesa's software OpenGL
-# and the X libraries winit opens, for the viewer and its smoke test.
+# and the X libraries winit opens, for the viewer and its smoke test; Open MPI
+# and libclang (the `mpi` crate's bindings) for the `mpi` feature and its test.
 pkgs=(build-essential pkg-config xvfb xauth libgl1-mesa-dri libglx-mesa0 libegl1 libegl-mesa0
-  libxkbcommon-x11-0 libxcursor1 libxrandr2 libxi6 libx11-xcb1 fonts-dejavu-core)
+  libxkbcommon-x11-0 libxcursor1 libxrandr2 libxi6 libx11-xcb1 fonts-dejavu-core
+  openmpi-bin libopenmpi-dev libclang-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

@@ -11,7 +11,63 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 mod bench;
+#[cfg(feature = "mpi")]
+mod distributed;
 mod soak;
+
+/// Where frames are rendered: here, or on the MPI workers (feature `mpi`,
+/// under `mpirun` with more than one rank).
+#[cfg(feature = "mpi")]
+type Cluster = distributed::Cluster;
+/// Where frames are rendered: always here in a build without `mpi`.
+#[cfg(not(feature = "mpi"))]
+enum Cluster {}
+
+/// Renders the current frame of `player` at time `t`: here, or on the
+/// cluster (its replicas get the change set of the player's last commit).
+fn render_frame(
+    player: &mut ScenePlayer,
+    t: f32,
+    s: &RenderSettings,
+    renderer: &Renderer,
+    cluster: Option<&Cluster>,
+) -> Result<(Image, openrt_core::FrameStats, Option<serde_json::Value>), String> {
+    #[cfg(feature = "mpi")]
+    if let Some(c) = cluster {
+        let changes = player
+            .ctx_mut()
+            .take_changes()
+            .ok_or("the scene's context does not record its changes")?;
+        let (img, net) = c.render(&changes, &player.camera(t), &player.env(), s, renderer.backend())?;
+        let rays = openrt_core::RayCounts {
+            primary: net.rays[0],
+            shadow: net.rays[1],
+            reflection: net.rays[2],
+            refraction: net.rays[3],
+        };
+        let stats = openrt_core::FrameStats {
+            rays,
+            render_ms: net.render_ms,
+            mrays_per_s: rays.total() as f64 / (net.render_ms * 1e3).max(1e-3),
+            threads: renderer.threads(),
+        };
+        let figures = serde_json::json!({
+            "ranks": c.workers() + 1,
+            "bytes_sent": net.bytes_sent,
+            "broadcast_ms": net.broadcast_ms,
+            "worker_commit_ms": net.worker_commit_ms,
+            "render_gather_ms": net.render_ms,
+            "bytes_gathered": net.bytes_gathered,
+        });
+        return Ok((img, stats, Some(figures)));
+    }
+    #[cfg(not(feature = "mpi"))]
+    let _ = cluster;
+    let (img, st) = renderer
+        .render(&player.ctx().scene(), &player.env(), &player.camera(t), s)
+        .map_err(|e| e.to_string())?;
+    Ok((img, st, None))
+}
 
 /// Most frames `openrt bench --frames` samples per scene.
 const MAX_BENCH_FRAMES: usize = 1000;
@@ -155,11 +211,49 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = Cli::parse();
+    #[cfg(feature = "mpi")]
+    if let Some(cluster) = distributed::Cluster::start() {
+        return run_mpi(cli, &cluster);
+    }
+    match run(cli, None) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+/// Under `mpirun`: rank 0 runs the command with the other ranks as its
+/// renderers; they work until it stops them.
+#[cfg(feature = "mpi")]
+fn run_mpi(cli: Cli, cluster: &Cluster) -> ExitCode {
+    if cluster.rank() > 0 {
+        let threads = match &cli.command {
+            Command::Render { quality, .. } | Command::Play { quality, .. } | Command::Soak { quality, .. } => {
+                threads(quality)
+            }
+            Command::Bench { .. } => std::thread::available_parallelism().map_or(1, std::num::NonZero::get),
+        };
+        return match cluster.work(threads) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("error: MPI rank {}: {e}", cluster.rank());
+                ExitCode::FAILURE
+            }
+        };
+    }
+    let r = run(cli, Some(cluster));
+    match r {
+        Ok(()) => {
+            cluster.stop();
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            // Workers may be busy or gone: end the whole job.
+            cluster.abort(1)
         }
     }
 }
@@ -242,7 +336,7 @@ fn frame_range(spec: Option<&str>, n: u32) -> Result<std::ops::Range<u32>, Strin
     Ok(a..b)
 }
 
-fn run(cli: Cli) -> Result<(), String> {
+fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
     let strict = cli.strict;
     match cli.command {
         Command::Render {
@@ -253,6 +347,9 @@ fn run(cli: Cli) -> Result<(), String> {
             time,
         } => {
             let mut player = open_scene(scene.as_deref(), strict)?;
+            if cluster.is_some() {
+                player.ctx_mut().record_changes();
+            }
             let t = match (frame, time) {
                 (Some(f), _) if f >= player.frames() => {
                     return Err(format!("--frame {f}: the scene has {} frames", player.frames()));
@@ -265,10 +362,11 @@ fn run(cli: Cli) -> Result<(), String> {
             let commit = player.set_time(t).map_err(|e| e.to_string())?;
             let s = settings(&player, &quality);
             let renderer = renderer(&quality)?;
-            let (img, stats) = renderer
-                .render(&player.ctx().scene(), &player.env(), &player.camera(t), &s)
-                .map_err(|e| e.to_string())?;
+            let (img, stats, net) = render_frame(&mut player, t, &s, &renderer, cluster)?;
             save_png(&output, &img)?;
+            if let Some(net) = net {
+                println!("distributed: {net}");
+            }
             let scene = player.ctx().scene();
             let r = stats.rays;
             println!(
@@ -359,6 +457,9 @@ fn run(cli: Cli) -> Result<(), String> {
             quality,
         } => {
             let mut player = open_scene(Some(&scene), strict)?;
+            if cluster.is_some() {
+                player.ctx_mut().record_changes();
+            }
             let range = frame_range(frames.as_deref(), player.frames())?;
             if let Some(dir) = &output {
                 std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -380,9 +481,7 @@ fn run(cli: Cli) -> Result<(), String> {
             for f in range {
                 let t = player.time_of(f);
                 let c = player.set_time(t).map_err(|e| e.to_string())?;
-                let (img, st) = renderer
-                    .render(&player.ctx().scene(), &player.env(), &player.camera(t), &s)
-                    .map_err(|e| e.to_string())?;
+                let (img, st, net) = render_frame(&mut player, t, &s, &renderer, cluster)?;
                 if let Some(dir) = &output {
                     save_png(&dir.join(format!("frame_{f:05}.png")), &img)?;
                 }
@@ -402,6 +501,7 @@ fn run(cli: Cli) -> Result<(), String> {
                     "mrays_per_s": st.mrays_per_s,
                     "rays": {"primary": st.rays.primary, "shadow": st.rays.shadow, "reflection": st.rays.reflection, "refraction": st.rays.refraction},
                     "instances": c.instances,
+                    "distributed": net,
                 });
                 writeln!(sink, "{line}").map_err(|e| e.to_string())?;
                 bar.set_message(format!("{:.1} ms/frame", c.total_ms + st.render_ms));

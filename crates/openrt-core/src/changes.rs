@@ -43,8 +43,52 @@ pub struct TextureData {
     pub width: u32,
     /// Height in texels.
     pub height: u32,
-    /// RGB texels, row by row.
+    /// 8-bit RGB texels, row by row, when every texel is exactly `k / 255`
+    /// (textures loaded from 8-bit files): a quarter of the bytes.
+    pub rgb8: Vec<u8>,
+    /// RGB texels, row by row, otherwise.
     pub texels: Vec<[f32; 3]>,
+}
+
+impl TextureData {
+    fn of(t: &Texture) -> Self {
+        let eight: Option<Vec<u8>> = t
+            .texels()
+            .iter()
+            .flat_map(Vec3::to_array)
+            .map(|c| {
+                let b = (c * 255.0).round();
+                ((0.0..=255.0).contains(&b) && f32::from(b as u8) / 255.0 == c).then_some(b as u8)
+            })
+            .collect();
+        match eight {
+            Some(rgb8) => Self {
+                width: t.width() as u32,
+                height: t.height() as u32,
+                rgb8,
+                texels: Vec::new(),
+            },
+            None => Self {
+                width: t.width() as u32,
+                height: t.height() as u32,
+                rgb8: Vec::new(),
+                texels: t.texels().iter().map(Vec3::to_array).collect(),
+            },
+        }
+    }
+
+    fn texture(&self) -> Option<Texture> {
+        let texels: Vec<Vec3> = if self.rgb8.is_empty() {
+            self.texels.iter().map(|c| Vec3::from_array(*c)).collect()
+        } else {
+            // The same arithmetic as loading an 8-bit file: bit-identical texels.
+            self.rgb8
+                .chunks_exact(3)
+                .map(|p| Vec3::new(f32::from(p[0]), f32::from(p[1]), f32::from(p[2])) / 255.0)
+                .collect()
+        };
+        Texture::new(self.width as usize, self.height as usize, texels)
+    }
 }
 
 /// A finished object definition as plain data.
@@ -281,11 +325,7 @@ impl Context {
             );
         }
         for t in &self.textures[log.textures_sent..] {
-            set.textures.push(TextureData {
-                width: t.width() as u32,
-                height: t.height() as u32,
-                texels: t.texels().iter().map(Vec3::to_array).collect(),
-            });
+            set.textures.push(TextureData::of(t));
         }
         log.textures_sent = self.textures.len();
         for (index, slot) in self.objects.iter_mut().enumerate() {
@@ -395,8 +435,8 @@ impl Context {
             self.materials_dirty = true;
         }
         for t in &set.textures {
-            let texels = t.texels.iter().map(|c| Vec3::from_array(*c)).collect();
-            let tex = Texture::new(t.width as usize, t.height as usize, texels)
+            let tex = t
+                .texture()
                 .ok_or_else(|| bad(format!("a {}x{} texture with bad texels", t.width, t.height)))?;
             self.create_texture(tex);
         }

@@ -109,7 +109,10 @@ pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{ObjectGeometry, ObjectMesh, ShadingData};
 pub use primitive::PrimitiveKind;
-pub use render::{Backend, FrameStats, Image, RenderSettings, Renderer, TILE, packet_block, sample_offset};
+pub use render::{
+    Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, packet_block, sample_offset,
+    tile_count,
+};
 pub use scene::{Scene, SceneHit, Surface};
 pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, offset_ray_origin};
 pub use texture::{Texture, TextureFilter};

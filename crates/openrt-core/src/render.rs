@@ -184,6 +184,8 @@ struct FrameJob {
     embree: Arc<std::sync::RwLock<crate::embree_backend::EmbreeScene>>,
     tiles_x: u32,
     n_tiles: usize,
+    /// The tiles to render (all `n_tiles` of the frame when `None`).
+    list: Option<Vec<u32>>,
     next: AtomicUsize,
     /// Each worker sends its tiles once, when no tile is left.
     results: Sender<Vec<TileResult>>,
@@ -301,9 +303,38 @@ impl Renderer {
         camera: &Camera,
         settings: &RenderSettings,
     ) -> Result<(Image, FrameStats), CoreError> {
+        let start = Instant::now();
+        let (tiles, rays) = self.render_tiles(scene, env, camera, settings, None)?;
+        let image = assemble(settings, tiles.iter().map(|t| (t.0, t.1.as_slice())));
+        let secs = start.elapsed().as_secs_f64();
+        let stats = FrameStats {
+            rays,
+            render_ms: secs * 1e3,
+            mrays_per_s: rays.total() as f64 / secs.max(1e-9) / 1e6,
+            threads: self.workers.len(),
+        };
+        Ok((image, stats))
+    }
+
+    /// Renders the tiles `only` of a frame (all of them for `None`), in any
+    /// order: each tile's pixels, row by row, with its index (tiles are
+    /// [`TILE`] pixels square, numbered row by row: [`tile_count`]). A tile's
+    /// pixels are the bytes [`Renderer::render`] puts in the image, so parts
+    /// of a frame rendered anywhere assemble into the same image
+    /// ([`assemble`]). Also returns the rays traced.
+    ///
+    /// # Errors
+    /// As [`Renderer::render`]; a tile index out of range is a [`CoreError::Limit`].
+    pub fn render_tiles(
+        &self,
+        scene: &Arc<Scene>,
+        env: &Arc<Environment>,
+        camera: &Camera,
+        settings: &RenderSettings,
+        only: Option<&[u32]>,
+    ) -> Result<(Vec<RenderedTile>, RayCounts), CoreError> {
         settings.validate("render")?;
         let cam = camera.rays(settings.width, settings.height)?;
-        let start = Instant::now();
         // The Embree peer's own commit counts as part of its frame.
         #[cfg(feature = "embree")]
         if matches!(self.backend, Backend::Embree | Backend::EmbreePacket) {
@@ -313,8 +344,17 @@ impl Renderer {
                 .sync(scene)?;
         }
         let tiles_x = settings.width.div_ceil(TILE);
-        let tiles_y = settings.height.div_ceil(TILE);
-        let n_tiles = (tiles_x * tiles_y) as usize;
+        let all = tile_count(settings);
+        if let Some(&bad) = only.and_then(|o| o.iter().find(|&&t| t >= all)) {
+            return Err(CoreError::Limit {
+                call: "render_tiles",
+                what: "tile index".into(),
+                value: u64::from(bad),
+                limit: u64::from(all) - 1,
+            });
+        }
+        let list: Option<Vec<u32>> = only.map(<[u32]>::to_vec);
+        let n_tiles = list.as_ref().map_or(all as usize, Vec::len);
         let (rtx, rrx) = unbounded();
         let job = Arc::new(FrameJob {
             scene: Arc::clone(scene),
@@ -327,6 +367,7 @@ impl Renderer {
             embree: Arc::clone(&self.embree),
             tiles_x,
             n_tiles,
+            list,
             next: AtomicUsize::new(0),
             results: rtx,
             failure: Mutex::new(None),
@@ -340,12 +381,11 @@ impl Renderer {
         }
         let failure = Arc::clone(&job);
         drop(job);
-        let mut pixels = vec![Vec3::ZERO; (settings.width * settings.height) as usize];
+        let mut out = Vec::with_capacity(n_tiles);
         let mut rays = RayCounts::default();
         // PERF: one message per worker per frame, not one per tile: a wake-up
         // of this thread per tile cost ~10% of a GL-like kitchen frame.
-        let mut received = 0;
-        while received < n_tiles {
+        while out.len() < n_tiles {
             // Every worker drops the job when it is done, so the channel
             // closes if a tile was lost.
             let Ok(tiles) = rrx.recv() else {
@@ -354,36 +394,51 @@ impl Renderer {
                         .failure
                         .lock()
                         .take()
-                        .unwrap_or_else(|| format!("only {received} of {n_tiles} tiles came back")),
+                        .unwrap_or_else(|| format!("only {} of {n_tiles} tiles came back", out.len())),
                 });
             };
             for tile in tiles {
-                received += 1;
-                let (tx, ty) = (tile.index as u32 % tiles_x, tile.index as u32 / tiles_x);
-                let (x0, y0) = (tx * TILE, ty * TILE);
-                let w = TILE.min(settings.width - x0);
-                for (row, chunk) in tile.pixels.chunks(w as usize).enumerate() {
-                    let start = ((y0 + row as u32) * settings.width + x0) as usize;
-                    pixels[start..start + chunk.len()].copy_from_slice(chunk);
-                }
                 rays.add(&tile.counts);
+                out.push((tile.index as u32, tile.pixels));
             }
         }
-        let secs = start.elapsed().as_secs_f64();
-        let stats = FrameStats {
-            rays,
-            render_ms: secs * 1e3,
-            mrays_per_s: rays.total() as f64 / secs.max(1e-9) / 1e6,
-            threads: self.workers.len(),
-        };
-        Ok((
-            Image {
-                width: settings.width,
-                height: settings.height,
-                pixels,
-            },
-            stats,
-        ))
+        Ok((out, rays))
+    }
+}
+
+/// A rendered tile: its index and its pixels, row by row.
+pub type RenderedTile = (u32, Vec<Vec3>);
+
+/// Number of tiles of a frame (numbered row by row).
+#[must_use]
+pub fn tile_count(settings: &RenderSettings) -> u32 {
+    settings.width.div_ceil(TILE) * settings.height.div_ceil(TILE)
+}
+
+/// The image of a frame from its tiles ([`Renderer::render_tiles`]); tiles
+/// not given stay black.
+#[must_use]
+pub fn assemble<'a>(settings: &RenderSettings, tiles: impl IntoIterator<Item = (u32, &'a [Vec3])>) -> Image {
+    let tiles_x = settings.width.div_ceil(TILE);
+    let mut pixels = vec![Vec3::ZERO; (settings.width * settings.height) as usize];
+    for (index, tile) in tiles {
+        let (tx, ty) = (index % tiles_x, index / tiles_x);
+        let (x0, y0) = (tx * TILE, ty * TILE);
+        if x0 >= settings.width || y0 >= settings.height {
+            continue;
+        }
+        let w = TILE.min(settings.width - x0);
+        for (row, chunk) in tile.chunks(w as usize).enumerate() {
+            let start = ((y0 + row as u32) * settings.width + x0) as usize;
+            if let Some(dst) = pixels.get_mut(start..start + chunk.len()) {
+                dst.copy_from_slice(chunk);
+            }
+        }
+    }
+    Image {
+        width: settings.width,
+        height: settings.height,
+        pixels,
     }
 }
 
@@ -427,12 +482,13 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) {
     let offsets: Vec<(f32, f32)> = (0..spp).map(|i| sample_offset(job.settings.first_sample + i)).collect();
     let mut done = Vec::new();
     loop {
-        let index = job.next.fetch_add(1, Ordering::Relaxed);
-        if index >= job.n_tiles {
+        let k = job.next.fetch_add(1, Ordering::Relaxed);
+        if k >= job.n_tiles {
             // The receiver only goes away if render() panicked; nothing to do then.
             let _ = job.results.send(done);
             return;
         }
+        let index = job.list.as_ref().map_or(k, |l| l[k] as usize);
         shader.counts = RayCounts::default();
         let (tx, ty) = (index as u32 % job.tiles_x, index as u32 / job.tiles_x);
         let (x0, y0) = (tx * TILE, ty * TILE);
