@@ -138,18 +138,23 @@ pub struct Cluster {
     world: SimpleCommunicator,
     /// The environment the workers have (sent again only when it changes).
     sent_env: std::cell::RefCell<Option<EnvMsg>>,
+    /// Rank 0 renders tiles too (`openrt --mpi-root-renders`); by default it
+    /// only coordinates.
+    root_renders: bool,
 }
 
 impl Cluster {
-    /// Starts MPI; `None` with a single rank (everything runs as without the feature).
+    /// Starts MPI; `None` with a single rank (everything runs as without the
+    /// feature). `root_renders`: rank 0 renders tiles too.
     #[must_use]
-    pub fn start() -> Option<Self> {
+    pub fn start(root_renders: bool) -> Option<Self> {
         let universe = mpi::initialize()?;
         let world = universe.world();
         (world.size() > 1).then_some(Self {
             _universe: universe,
             world,
             sent_env: std::cell::RefCell::new(None),
+            root_renders,
         })
     }
 
@@ -186,10 +191,11 @@ impl Cluster {
         &self,
         changes: &ChangeSet,
         camera: &Camera,
-        env: &Environment,
+        env: &std::sync::Arc<Environment>,
         settings: &RenderSettings,
-        backend: Backend,
+        local: Option<(&Renderer, &std::sync::Arc<openrt_core::Scene>)>,
     ) -> Result<(Image, NetStats), String> {
+        let backend = local.map_or(Backend::default(), |l| l.0.backend());
         let msg = FrameMsg {
             changes: changes.to_bytes()?,
             camera: [
@@ -245,6 +251,17 @@ impl Cluster {
         let mut failure = None;
         while finished.iter().any(|f| !f) {
             let Some(probed) = self.world.any_process().immediate_matched_probe_with_tag(TAG_REQUEST) else {
+                // With `--mpi-root-renders`, rank 0 takes a batch itself
+                // whenever no worker is asking.
+                if let Some((r, scene)) = local.filter(|_| self.root_renders && next < n && failure.is_none()) {
+                    let give: Vec<u32> = (next..(next + batch).min(n)).collect();
+                    next += give.len() as u32;
+                    let (done, _) = r
+                        .render_tiles(scene, env, camera, settings, Some(&give))
+                        .map_err(|e| e.to_string())?;
+                    tiles.extend(done);
+                    continue;
+                }
                 if heard.elapsed() > timeout() {
                     let silent: Vec<String> = (1..self.world.size())
                         .filter(|&r| !finished[r as usize])

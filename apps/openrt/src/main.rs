@@ -38,7 +38,8 @@ fn render_frame(
             .ctx_mut()
             .take_changes()
             .ok_or("the scene's context does not record its changes")?;
-        let (img, net) = c.render(&changes, &player.camera(t), &player.env(), s, renderer.backend())?;
+        let scene = player.ctx().scene();
+        let (img, net) = c.render(&changes, &player.camera(t), &player.env(), s, Some((renderer, &scene)))?;
         let rays = openrt_core::RayCounts {
             primary: net.rays[0],
             shadow: net.rays[1],
@@ -89,6 +90,10 @@ struct Cli {
     /// dropped) as errors.
     #[arg(long, global = true)]
     strict: bool,
+    /// Under mpirun (builds with `--features mpi`): rank 0 renders tiles too,
+    /// besides coordinating the workers.
+    #[arg(long, global = true)]
+    mpi_root_renders: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -213,7 +218,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     #[cfg(feature = "mpi")]
-    if let Some(cluster) = distributed::Cluster::start() {
+    if let Some(cluster) = distributed::Cluster::start(cli.mpi_root_renders) {
         return run_mpi(cli, &cluster);
     }
     match run(cli, None) {

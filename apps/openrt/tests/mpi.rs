@@ -53,11 +53,12 @@ fn three_ranks_render_the_single_process_bytes() {
     let dir = tempfile::tempdir().unwrap();
     for (name, mode) in [("textured", "whitted"), ("animated", "gl"), ("room", "whitted")] {
         let mut images = Vec::new();
-        for ranks in [1, 3] {
-            let png = dir.path().join(format!("{name}-{ranks}.png"));
+        for (ranks, root_renders) in [(1, false), (3, false), (3, true)] {
+            let png = dir.path().join(format!("{name}-{ranks}-{root_renders}.png"));
             let (out, _) = openrt(
                 ranks,
                 &[
+                    if root_renders { "--mpi-root-renders" } else { "--strict" },
                     "render",
                     scene(name).to_str().unwrap(),
                     "--width",
@@ -89,6 +90,10 @@ fn three_ranks_render_the_single_process_bytes() {
             images.push(std::fs::read(&png).unwrap());
         }
         assert!(images[0] == images[1], "{name} {mode}: 3 ranks give other bytes");
+        assert!(
+            images[0] == images[2],
+            "{name} {mode}: 3 ranks with rank 0 rendering give other bytes"
+        );
     }
 }
 
