@@ -750,17 +750,12 @@ fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
     root.present().map_err(|e| e.to_string())
 }
 
+/// The machine, as far as the standard library tells: cores and architecture
+/// (no CPU model: that would take a crate, and the core count is what the
+/// figures depend on).
 fn machine() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-    format!("{cores} cores, {cpu}")
+    format!("{cores} cores, {} {}", std::env::consts::ARCH, std::env::consts::OS)
 }
 
 /// Runs everything and writes the report.
