@@ -84,7 +84,9 @@ pub(crate) fn build_fast(tris: &[Triangle], valid: &[bool], params: &FastParams)
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
-        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        // The threads of the rayon pool the build runs in (the commit lends
+        // it its pool): no thread is spawned per build.
+        let cores = rayon::current_num_threads();
         let levels = if params.parallel {
             cores.next_power_of_two().trailing_zeros()
         } else {
@@ -288,15 +290,10 @@ impl Fast {
             depth_reached: 0,
         };
         let (mut lb, mut rb) = (sub(), sub());
-        let (lr, rr) = std::thread::scope(|s| {
-            let h = s.spawn(|| lb.node_parallel(lcell, left, depth + 1, levels - 1));
-            let r = rb.node_parallel(rcell, right, depth + 1, levels - 1);
-            (
-                h.join()
-                    .unwrap_or(Err(AccelError::Invalid("parallel build panicked".into()))),
-                r,
-            )
-        });
+        let (lr, rr) = rayon::join(
+            || lb.node_parallel(lcell, left, depth + 1, levels - 1),
+            || rb.node_parallel(rcell, right, depth + 1, levels - 1),
+        );
         lr?;
         rr?;
         // Stitch: this node, the left subtree right after it, then the right subtree.

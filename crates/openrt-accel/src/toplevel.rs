@@ -266,6 +266,15 @@ impl BspBuilder {
         }
     }
 
+    /// Runs `f` on one of the builder's threads in the background (on
+    /// rayon's global pool when the builder has none).
+    pub fn spawn(&self, f: impl FnOnce() + Send + 'static) {
+        match &self.pool {
+            Some(pool) => pool.spawn(f),
+            None => rayon::spawn(f),
+        }
+    }
+
     /// Builds the tree over `boxes`; item `i` of a leaf is an index into
     /// `boxes`. Empty or non-finite boxes are left out.
     pub fn build(&mut self, boxes: &[Aabb]) -> Result<InstanceBsp, AccelError> {

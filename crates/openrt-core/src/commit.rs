@@ -91,6 +91,10 @@ fn build_tree(
     KdTree::build(tris, builder)
 }
 
+/// Background SAH builds running at once, at most: they share the commit's
+/// pool, and a bound keeps them from filling it while a frame is built.
+pub const MAX_PROMOTIONS_IN_FLIGHT: usize = 2;
+
 /// Commits with at least this many instances make their records in parallel.
 const PARALLEL_RECORDS: usize = 2_048;
 
@@ -182,7 +186,11 @@ impl Context {
                 let t0 = Instant::now();
                 // NOTE: the definition stays pending until phase 2, so the
                 // builder gets a copy (a memcpy, ~1% of a fast build).
-                let tree = build_tree(mesh.triangles.clone(), builder, self.fail_builds.as_mut())
+                let tris = mesh.triangles.clone();
+                let fail = self.fail_builds.as_mut();
+                let tree = self
+                    .bsp_builder
+                    .install(|| build_tree(tris, builder, fail))
                     .map_err(|source| CoreError::Accel { call: "commit", source })?;
                 stats.builds.push(BuildRecord {
                     object: id,
@@ -199,8 +207,8 @@ impl Context {
             }
             // Collect a finished background build; a result for older
             // geometry is dropped.
-            if let Some(Promotion::Running { handle, .. }) = &slot.promotion
-                && handle.is_finished()
+            if let Some(Promotion::Running { result, .. }) = &slot.promotion
+                && !result.is_empty()
             {
                 slot.promotion = slot.promotion.take().map(Promotion::finish);
             }
@@ -363,6 +371,11 @@ impl Context {
         stats: &mut CommitStats,
     ) {
         let fail = self.fail_promotions;
+        let mut in_flight = self
+            .objects
+            .iter()
+            .filter(|s| matches!(s.promotion, Some(Promotion::Running { .. })))
+            .count();
         for ((index, slot), new) in self.objects.iter_mut().enumerate().zip(staged) {
             if !slot.alive {
                 continue;
@@ -400,21 +413,28 @@ impl Context {
                 Some(Promotion::Ready { .. }) => {}
                 Some(p @ (Promotion::Running { .. } | Promotion::Failed { .. })) => slot.promotion = Some(p),
                 None => {
-                    if promote_after.is_some_and(|n| slot.unchanged_commits >= n) {
+                    if promote_after.is_some_and(|n| slot.unchanged_commits >= n)
+                        && in_flight < MAX_PROMOTIONS_IN_FLIGHT
+                    {
+                        in_flight += 1;
                         let tris = geom.tree.triangles().to_vec();
                         let shading = Arc::clone(&geom.shading);
-                        let handle = std::thread::spawn(move || {
+                        let (tx, rx) = crossbeam::channel::bounded(1);
+                        // On the commit's own pool: no thread is spawned.
+                        self.bsp_builder.spawn(move || {
                             let tree = if fail {
                                 Err(openrt_accel::AccelError::Invalid("injected promotion failure".into()))
                             } else {
                                 KdTree::build_sah(tris)
                             };
-                            tree.map(|tree| Arc::new(ObjectGeometry { tree, shading }))
-                                .map_err(|e| e.to_string())
+                            let _ = tx.send(
+                                tree.map(|tree| Arc::new(ObjectGeometry { tree, shading }))
+                                    .map_err(|e| e.to_string()),
+                            );
                         });
                         slot.promotion = Some(Promotion::Running {
                             version: slot.version,
-                            handle,
+                            result: rx,
                         });
                         stats.promotions_started.push(id);
                     }

@@ -16,7 +16,8 @@ use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, PrimitiveKind
 pub(crate) enum Promotion {
     Running {
         version: u64,
-        handle: std::thread::JoinHandle<Result<Arc<ObjectGeometry>, String>>,
+        /// The build's answer, sent by the pool thread that ran it.
+        result: crossbeam::channel::Receiver<Result<Arc<ObjectGeometry>, String>>,
     },
     Ready {
         version: u64,
@@ -30,10 +31,10 @@ impl Promotion {
     /// Waits for a running build (if needed) and returns it as ready.
     pub(crate) fn finish(self) -> Self {
         match self {
-            Self::Running { version, handle } => Self::Ready {
+            Self::Running { version, result } => Self::Ready {
                 version,
-                result: handle
-                    .join()
+                result: result
+                    .recv()
                     .unwrap_or_else(|_| Err("the background build panicked".into())),
             },
             done => done,

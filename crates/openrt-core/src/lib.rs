@@ -93,7 +93,7 @@ mod tracer;
 
 pub use camera::{Camera, CameraRays};
 pub use changes::{ChangeSet, InstanceChange, MAX_SLOT_GROWTH, MaterialData, MeshData, ObjectChange, TextureData};
-pub use commit::{BuildRecord, CommitStats};
+pub use commit::{BuildRecord, CommitStats, MAX_PROMOTIONS_IN_FLIGHT};
 pub use context::Context;
 #[cfg(feature = "embree")]
 pub use embree_backend::EmbreeScene;
