@@ -147,41 +147,47 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
     }
     let mut acc: Vec<Acc> = vec![Default::default(); 2 * renderers.len()];
     let (mut tri, mut inst) = (0, 0);
-    for &f in &samples {
-        let t = player.time_of(f);
-        let c = player.set_time(t).map_err(|e| e.to_string())?;
-        let scene = player.ctx().scene();
-        (tri, inst) = (scene.instanced_triangles(), scene.instances().len());
-        let cam = player.camera(t);
-        let env = player.env();
+    // Commit and render on the same number of threads: each thread count
+    // plays the sampled frames with a commit pool of its size.
+    for &threads in &o.threads {
+        player.ctx_mut().set_threads(threads).map_err(|e| e.to_string())?;
+        player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
         let mut kd_images: Vec<Image> = Vec::new();
-        for (ri, (threads, r)) in renderers.iter().enumerate() {
-            for (mi, mode) in [RenderMode::GlLike, RenderMode::Whitted].into_iter().enumerate() {
-                let (img, st) = r
-                    .render(&scene, &env, &cam, &settings(o, mode, 3))
-                    .map_err(|e| e.to_string())?;
-                // The first sampled frame's images on one thread, against kd's.
-                if f == samples[0] && *threads == o.threads[0] {
-                    if r.backend() == Backend::Kd {
-                        kd_images.push(img);
-                    } else if let Some(kd) = kd_images.get(mi) {
-                        let (identical, off_share) = image_diff(kd, &img);
-                        diffs.push(ImageDiff {
-                            scene: name.to_string(),
-                            mode: ["GL-like", "Whitted"][mi],
-                            backend: r.backend().name(),
-                            identical,
-                            off_share,
-                        });
+        for &f in &samples {
+            let t = player.time_of(f);
+            let c = player.set_time(t).map_err(|e| e.to_string())?;
+            let scene = player.ctx().scene();
+            (tri, inst) = (scene.instanced_triangles(), scene.instances().len());
+            let cam = player.camera(t);
+            let env = player.env();
+            for (ri, (_, r)) in renderers.iter().enumerate().filter(|(_, (rt, _))| *rt == threads) {
+                for (mi, mode) in [RenderMode::GlLike, RenderMode::Whitted].into_iter().enumerate() {
+                    let (img, st) = r
+                        .render(&scene, &env, &cam, &settings(o, mode, 3))
+                        .map_err(|e| e.to_string())?;
+                    // The first sampled frame's images on the fewest threads, against kd's.
+                    if f == samples[0] && threads == o.threads[0] {
+                        if r.backend() == Backend::Kd {
+                            kd_images.push(img);
+                        } else if let Some(kd) = kd_images.get(mi) {
+                            let (identical, off_share) = image_diff(kd, &img);
+                            diffs.push(ImageDiff {
+                                scene: name.to_string(),
+                                mode: ["GL-like", "Whitted"][mi],
+                                backend: r.backend().name(),
+                                identical,
+                                off_share,
+                            });
+                        }
                     }
+                    let a = &mut acc[2 * ri + mi];
+                    a.0.push(c.total_ms);
+                    a.1.push(c.toplevel_ms);
+                    a.2.push(c.build_ms(BuilderKind::Fast));
+                    a.3 += c.promotions_swapped.len();
+                    a.4.push(st.render_ms);
+                    a.5.push(st.rays.total() as f64);
                 }
-                let a = &mut acc[2 * ri + mi];
-                a.0.push(c.total_ms);
-                a.1.push(c.toplevel_ms);
-                a.2.push(c.build_ms(BuilderKind::Fast));
-                a.3 += c.promotions_swapped.len();
-                a.4.push(st.render_ms);
-                a.5.push(st.rays.total() as f64);
             }
         }
     }

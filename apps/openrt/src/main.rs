@@ -300,6 +300,14 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
     s
 }
 
+/// Gives the scene's commit pool the render thread count (`--threads`).
+fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
+    player
+        .ctx_mut()
+        .set_threads(threads(q))
+        .map_err(|e| format!("--threads: {e}"))
+}
+
 /// The render pool for the quality options: thread count and backend.
 fn renderer(q: &Quality) -> Result<Renderer, String> {
     let mut r = Renderer::new(threads(q)).map_err(|e| format!("--threads: {e}"))?;
@@ -352,6 +360,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             time,
         } => {
             let mut player = open_scene(scene.as_deref(), strict)?;
+            commit_threads(&mut player, &quality)?;
             if cluster.is_some() {
                 player.ctx_mut().record_changes();
             }
@@ -462,6 +471,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             quality,
         } => {
             let mut player = open_scene(Some(&scene), strict)?;
+            commit_threads(&mut player, &quality)?;
             if cluster.is_some() {
                 player.ctx_mut().record_changes();
             }

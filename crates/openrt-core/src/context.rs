@@ -189,6 +189,18 @@ impl Context {
         self.redefinition_builder = builder;
     }
 
+    /// The threads of the commit's pool: the top-level build, the fast
+    /// builds of redefined objects, new instance records and the background
+    /// SAH builds (default: all cores). Trees do not depend on it.
+    ///
+    /// # Errors
+    /// [`CoreError::Limit`] for 0 or more than [`MAX_THREADS`](crate::MAX_THREADS).
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), CoreError> {
+        crate::check_threads("set_threads", threads)?;
+        self.bsp_builder = openrt_accel::BspBuilder::new(threads);
+        Ok(())
+    }
+
     /// The scene of the last commit.
     #[must_use]
     pub fn scene(&self) -> Arc<Scene> {
