@@ -30,6 +30,20 @@ fn available() -> Option<PathBuf> {
     None
 }
 
+/// `xvfb-run` is here; without it the test fails when `CI` is set and is
+/// skipped with a printed reason otherwise.
+fn have_xvfb() -> bool {
+    let ok = Command::new("xvfb-run").arg("--help").output().is_ok();
+    assert!(
+        ok || std::env::var_os("CI").is_none(),
+        "xvfb-run not found (apt-get install xvfb)"
+    );
+    if !ok {
+        println!("skipped: xvfb-run not found");
+    }
+    ok
+}
+
 #[test]
 #[cfg_attr(not(bart_data), ignore = "BART data not found: set OPENRT_BART_DIR")]
 fn the_viewer_renders_the_kitchen_in_a_real_window() {
@@ -86,12 +100,7 @@ fn the_viewer_renders_the_kitchen_in_a_real_window() {
 /// error, and the process exits with status 1 and the error within seconds.
 #[test]
 fn a_broken_scene_ends_a_screenshot_run_with_its_error() {
-    if Command::new("xvfb-run").arg("--help").output().is_err() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "xvfb-run not found (apt-get install xvfb)"
-        );
-        println!("skipped: xvfb-run not found");
+    if !have_xvfb() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -131,12 +140,7 @@ fn a_broken_scene_ends_a_screenshot_run_with_its_error() {
 /// one sample, and the overlay reports the count.
 #[test]
 fn a_still_view_accumulates_one_sample_per_frame() {
-    if Command::new("xvfb-run").arg("--help").output().is_err() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "xvfb-run not found (apt-get install xvfb)"
-        );
-        println!("skipped: xvfb-run not found");
+    if !have_xvfb() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -718,14 +718,20 @@ fn embree_side_by_side(o: &BenchOptions, name: &str, out: &mut String) -> Result
     Ok(())
 }
 
-fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
-    use plotters::prelude::*;
+/// Registers DejaVu Sans as the plots' "sans-serif" font.
+pub(crate) fn register_plot_font() -> Result<(), String> {
+    use plotters::prelude::FontStyle;
     let font = ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"]
         .iter()
         .find_map(|p| std::fs::read(p).ok())
         .ok_or("no DejaVuSans.ttf for the plot's labels (apt-get install fonts-dejavu-core)")?;
     plotters::style::register_font("sans-serif", FontStyle::Normal, Box::leak(font.into_boxed_slice()))
-        .map_err(|_| "cannot load the plot font".to_string())?;
+        .map_err(|_| "cannot load the plot font".to_string())
+}
+
+fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
+    use plotters::prelude::*;
+    register_plot_font()?;
     let root = SVGBackend::new(path, (720, 480)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let max_ms = q.iter().map(|x| x.ms).fold(1.0, f64::max) * 1.15;

@@ -148,12 +148,7 @@ pub fn run(o: &SoakOptions, settings: &RenderSettings, renderer: &Renderer) -> R
 
 fn plot(path: &Path, scene: &Path, samples: &[Sample]) -> Result<(), String> {
     use plotters::prelude::*;
-    let font = ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"]
-        .iter()
-        .find_map(|p| std::fs::read(p).ok())
-        .ok_or("no DejaVuSans.ttf for the plot's labels (apt-get install fonts-dejavu-core)")?;
-    plotters::style::register_font("sans-serif", FontStyle::Normal, Box::leak(font.into_boxed_slice()))
-        .map_err(|_| "cannot load the plot font".to_string())?;
+    crate::bench::register_plot_font()?;
     let root = SVGBackend::new(path, (720, 480)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let frames = samples.last().map_or(1, |s| s.frame) as f64;

@@ -212,15 +212,8 @@ impl Context {
     /// A new object id (like `glGenLists`); the object has no geometry until defined.
     pub fn gen_object(&mut self) -> ObjectId {
         let fresh = ObjectSlot {
-            generation: 0,
             alive: true,
-            pending: None,
-            geometry: None,
-            version: 0,
-            unchanged_commits: 0,
-            promotion: None,
-            resend: false,
-            forced_builder: None,
+            ..ObjectSlot::dead()
         };
         if let Some(i) = self.free_objects.pop() {
             let slot = &mut self.objects[i as usize];
