@@ -87,6 +87,8 @@ fn crafted_inputs_give_errors_not_crashes() {
         (&["render", "anim.ron", "--frame", "3", "-o", "a.png"], "--frame 3"),
         (&["render", "missing.aff", "-o", "a.png"], "missing.aff"),
         (&["bench", "--frames", "100000000", "--scenes", "slab"], "--frames"),
+        (&["render", "--spp", "0", "-o", "a.png"], "samples per pixel"),
+        (&["render", "--spp", "100000", "-o", "a.png"], "samples per pixel"),
     ];
     for (args, expect) in cases {
         let (code, err) = openrt(args, d);
