@@ -266,8 +266,10 @@ impl<T: Tracer> Shader<'_, T> {
                 // Level of detail (ray cones, RTG ch. 20, eq. 34): the texel
                 // to world area ratio of the triangle, the cone's width, and
                 // the obliquity of the hit.
+                // PERF: one log2 of the product instead of three.
                 let texel_area = surf.uv_area * (t.width() * t.height()) as f32;
-                let lod = 0.5 * (texel_area / surf.world_area).log2() + prep.cone.width.log2() - d.dot(nf).abs().log2();
+                let (w, cos) = (prep.cone.width, d.dot(nf));
+                let lod = 0.5 * (texel_area * w * w / (surf.world_area * cos * cos)).log2();
                 t.sample_filtered(surf.uv, lod, self.filter)
             });
         let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
