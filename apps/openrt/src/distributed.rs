@@ -130,6 +130,58 @@ pub struct NetStats {
     pub bytes_gathered: u64,
     /// Rays traced by the workers: primary, shadow, reflection, refraction.
     pub rays: [u64; 4],
+    /// Static order: tiles taken from another rank's share.
+    pub stolen: u32,
+}
+
+/// The tiles of a frame still to hand out.
+///
+/// Dynamic (the default): one queue, in order; each request takes the next
+/// few. Static (`--mpi-tiles static`): tile `t` belongs to rank `t mod r`
+/// of the `r` rendering ranks; a rank whose share is done steals from the
+/// end of the largest share left.
+struct TileQueue {
+    queues: Vec<std::collections::VecDeque<u32>>,
+    stolen: u32,
+}
+
+impl TileQueue {
+    fn new(n: u32, ranks: usize, static_order: bool, root_renders: bool) -> Self {
+        let mut queues = vec![std::collections::VecDeque::new(); ranks];
+        if static_order {
+            let first = usize::from(!root_renders);
+            let owners = ranks - first;
+            for t in 0..n {
+                queues[first + t as usize % owners].push_back(t);
+            }
+        } else {
+            queues[0].extend(0..n);
+        }
+        Self { queues, stolen: 0 }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.queues.iter().all(std::collections::VecDeque::is_empty)
+    }
+
+    /// Up to `batch` tiles for `rank`.
+    fn take(&mut self, rank: usize, batch: u32) -> Vec<u32> {
+        let batch = batch as usize;
+        let shared = self.queues.iter().skip(1).all(std::collections::VecDeque::is_empty) && rank != 0;
+        let own = if shared { 0 } else { rank };
+        if !self.queues[own].is_empty() {
+            let k = batch.min(self.queues[own].len());
+            return self.queues[own].drain(..k).collect();
+        }
+        // Steal from the end of the largest share.
+        let Some(victim) = (0..self.queues.len()).max_by_key(|&i| self.queues[i].len()) else {
+            return Vec::new();
+        };
+        let k = batch.min(self.queues[victim].len());
+        let at = self.queues[victim].len() - k;
+        self.stolen += k as u32;
+        self.queues[victim].drain(at..).collect()
+    }
 }
 
 /// The MPI world when this process runs under `mpirun` with more than one rank.
@@ -141,13 +193,15 @@ pub struct Cluster {
     /// Rank 0 renders tiles too (`openrt --mpi-root-renders`); by default it
     /// only coordinates.
     root_renders: bool,
+    /// Static tile order with stealing (`--mpi-tiles static`), else dynamic.
+    static_tiles: bool,
 }
 
 impl Cluster {
     /// Starts MPI; `None` with a single rank (everything runs as without the
     /// feature). `root_renders`: rank 0 renders tiles too.
     #[must_use]
-    pub fn start(root_renders: bool) -> Option<Self> {
+    pub fn start(root_renders: bool, static_tiles: bool) -> Option<Self> {
         let universe = mpi::initialize()?;
         let world = universe.world();
         (world.size() > 1).then_some(Self {
@@ -155,6 +209,7 @@ impl Cluster {
             world,
             sent_env: std::cell::RefCell::new(None),
             root_renders,
+            static_tiles,
         })
     }
 
@@ -243,7 +298,7 @@ impl Cluster {
         // A few tiles per request: enough to keep a worker busy between
         // requests, few enough to balance at the end of the frame.
         let batch = (n / (self.workers() as u32 * 16)).clamp(1, 8);
-        let mut next = 0u32;
+        let mut queue = TileQueue::new(n, self.world.size() as usize, self.static_tiles, self.root_renders);
         let mut tiles: Vec<(u32, Vec<Vec3>)> = Vec::with_capacity(n as usize);
         let mut finished = vec![false; self.world.size() as usize];
         finished[0] = true;
@@ -253,9 +308,9 @@ impl Cluster {
             let Some(probed) = self.world.any_process().immediate_matched_probe_with_tag(TAG_REQUEST) else {
                 // With `--mpi-root-renders`, rank 0 takes a batch itself
                 // whenever no worker is asking.
-                if let Some((r, scene)) = local.filter(|_| self.root_renders && next < n && failure.is_none()) {
-                    let give: Vec<u32> = (next..(next + batch).min(n)).collect();
-                    next += give.len() as u32;
+                if let Some((r, scene)) = local.filter(|_| self.root_renders && !queue.is_empty() && failure.is_none())
+                {
+                    let give = queue.take(0, batch);
                     let (done, _) = r
                         .render_tiles(scene, env, camera, settings, Some(&give))
                         .map_err(|e| e.to_string())?;
@@ -295,9 +350,8 @@ impl Cluster {
             let give: Vec<u32> = if failure.is_some() {
                 Vec::new()
             } else {
-                (next..(next + batch).min(n)).collect()
+                queue.take(rank as usize, batch)
             };
-            next += give.len() as u32;
             if give.is_empty() {
                 finished[rank as usize] = true;
             }
@@ -307,6 +361,7 @@ impl Cluster {
             return Err(e);
         }
         stats.render_ms = t1.elapsed().as_secs_f64() * 1e3;
+        stats.stolen = queue.stolen;
         if tiles.len() != n as usize {
             return Err(format!("{} of {n} tiles came back", tiles.len()));
         }

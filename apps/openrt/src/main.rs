@@ -59,6 +59,7 @@ fn render_frame(
             "worker_commit_ms": net.worker_commit_ms,
             "render_gather_ms": net.render_ms,
             "bytes_gathered": net.bytes_gathered,
+            "tiles_stolen": net.stolen,
         });
         return Ok((img, stats, Some(figures)));
     }
@@ -94,6 +95,10 @@ struct Cli {
     /// besides coordinating the workers.
     #[arg(long, global = true)]
     mpi_root_renders: bool,
+    /// Under mpirun: how rank 0 hands out tiles: `dynamic` (workers ask for
+    /// the next few) or `static` (interleaved shares, with stealing at the end).
+    #[arg(long, global = true, default_value = "dynamic", value_parser = ["dynamic", "static"])]
+    mpi_tiles: String,
     #[command(subcommand)]
     command: Command,
 }
@@ -218,7 +223,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     #[cfg(feature = "mpi")]
-    if let Some(cluster) = distributed::Cluster::start(cli.mpi_root_renders) {
+    if let Some(cluster) = distributed::Cluster::start(cli.mpi_root_renders, cli.mpi_tiles == "static") {
         return run_mpi(cli, &cluster);
     }
     match run(cli, None) {

@@ -53,12 +53,17 @@ fn three_ranks_render_the_single_process_bytes() {
     let dir = tempfile::tempdir().unwrap();
     for (name, mode) in [("textured", "whitted"), ("animated", "gl"), ("room", "whitted")] {
         let mut images = Vec::new();
-        for (ranks, root_renders) in [(1, false), (3, false), (3, true)] {
-            let png = dir.path().join(format!("{name}-{ranks}-{root_renders}.png"));
+        for (ranks, flag) in [
+            (1, "--strict"),
+            (3, "--strict"),
+            (3, "--mpi-root-renders"),
+            (3, "--mpi-tiles=static"),
+        ] {
+            let png = dir.path().join(format!("{name}-{ranks}-{flag}.png"));
             let (out, _) = openrt(
                 ranks,
                 &[
-                    if root_renders { "--mpi-root-renders" } else { "--strict" },
+                    flag,
                     "render",
                     scene(name).to_str().unwrap(),
                     "--width",
