@@ -21,17 +21,19 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 out=$(mktemp -d)
 echo "Made by \`scripts/mpi-figures.sh $frames ${scenes[*]}\` on $cores cores ($(date -u +%Y-%m-%d)); $frames frames from frame 100, 640x480 GL-like; medians per frame."
 echo
-echo "| scene | ranks x threads | bytes sent | broadcast ms | worker commit ms | render + gather ms | frame ms | fps | note |"
-echo "|---|---|---:|---:|---:|---:|---:|---:|---|"
+echo "| scene | ranks x threads | tiles | bytes sent | broadcast ms | worker commit ms | render + gather ms | frame ms | fps | tiles stolen | note |"
+echo "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|"
 for s in "${scenes[@]}"; do
-  for ranks in 1 2 3 4; do
+  for run in 1:dynamic 2:dynamic 3:dynamic 3:static 4:dynamic; do
+    ranks=${run%%:*}
+    order=${run##*:}
     threads=$([ "$ranks" -eq 1 ] && echo 2 || echo 1)
-    dir=$out/$s-$ranks
-    cmd=("$bin" play "scenes/$s.ron" --frames "100..$((100 + frames))" --mode gl --threads "$threads" --stats "$dir.jsonl")
+    dir=$out/$s-$ranks-$order
+    cmd=("$bin" --mpi-tiles "$order" play "scenes/$s.ron" --frames "100..$((100 + frames))" --mode gl --threads "$threads" --stats "$dir.jsonl")
     if [ "$ranks" -eq 1 ]; then "${cmd[@]}" >/dev/null 2>&1; else mpirun -n "$ranks" --oversubscribe "${cmd[@]}" >/dev/null 2>&1; fi
-    python3 - "$dir.jsonl" "$s" "$ranks" "$threads" "$cores" <<'PY'
+    python3 - "$dir.jsonl" "$s" "$ranks" "$threads" "$cores" "$order" <<'PY'
 import json, statistics, sys
-path, scene, ranks, threads, cores = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
+path, scene, ranks, threads, cores, order = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]), sys.argv[6]
 rows = [json.loads(l) for l in open(path)][1:]  # the first frame sends the whole scene
 med = lambda xs: statistics.median(xs) if xs else float("nan")
 d = [r.get("distributed") for r in rows]
@@ -40,9 +42,9 @@ frame = med([r["commit_ms"] + r["render_ms"] + (r["distributed"]["broadcast_ms"]
 busy = ranks * threads if ranks == 1 else (ranks - 1) * threads + 1
 note = "oversubscribed" if busy > cores else ""
 if ranks == 1:
-    print(f"| {scene} | 1 x {threads} (one process) | - | - | - | {med([r['render_ms'] for r in rows]):.1f} | {frame:.1f} | {1000/frame:.1f} | {note} |")
+    print(f"| {scene} | 1 x {threads} (one process) | - | - | - | - | {med([r['render_ms'] for r in rows]):.1f} | {frame:.1f} | {1000/frame:.1f} | - | {note} |")
 else:
-    print(f"| {scene} | {ranks} x {threads} | {med([x['bytes_sent'] for x in d]):.0f} | {med([x['broadcast_ms'] for x in d]):.2f} | {med([x['worker_commit_ms'] for x in d]):.2f} | {med([x['render_gather_ms'] for x in d]):.1f} | {frame:.1f} | {1000/frame:.1f} | {note} |")
+    print(f"| {scene} | {ranks} x {threads} | {order} | {med([x['bytes_sent'] for x in d]):.0f} | {med([x['broadcast_ms'] for x in d]):.2f} | {med([x['worker_commit_ms'] for x in d]):.2f} | {med([x['render_gather_ms'] for x in d]):.1f} | {frame:.1f} | {1000/frame:.1f} | {med([x['tiles_stolen'] for x in d]):.0f} | {note} |")
 PY
   done
 done
