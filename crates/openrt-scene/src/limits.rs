@@ -40,7 +40,7 @@ pub const MAX_TREE_TRIANGLES: u32 = 1_000_000;
 pub const MAX_ANIMART_TRIANGLES: u32 = 4_000_000;
 
 /// Most stacks of a RON `Sphere` (it has twice as many slices).
-pub const MAX_SPHERE_SEGMENTS: u32 = 1024;
+pub const MAX_SPHERE_SEGMENTS: u32 = 256;
 
 /// Most frames of an animation.
 pub const MAX_FRAMES: u32 = 10_000_000;
