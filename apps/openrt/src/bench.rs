@@ -762,12 +762,13 @@ fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
     root.present().map_err(|e| e.to_string())
 }
 
-/// The machine, as far as the standard library tells: cores and architecture
+/// The machine, as far as the standard library tells: cores and system (the
+/// report adds the architecture)
 /// (no CPU model: that would take a crate, and the core count is what the
 /// figures depend on).
 fn machine() -> String {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-    format!("{cores} cores, {} {}", std::env::consts::ARCH, std::env::consts::OS)
+    format!("{cores} cores, {}", std::env::consts::OS)
 }
 
 /// Runs everything and writes the report.
