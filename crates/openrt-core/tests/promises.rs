@@ -12,19 +12,8 @@ use openrt_core::{
     MAX_THREADS, Material, PointLight, PrimitiveKind, RenderMode, RenderSettings, Renderer,
 };
 
-fn define(ctx: &mut Context, tris: &[[Vec3; 3]]) -> openrt_core::ObjectId {
-    let id = ctx.gen_object();
-    ctx.begin_object(id).unwrap();
-    ctx.begin(PrimitiveKind::Triangles).unwrap();
-    for t in tris {
-        for &v in t {
-            ctx.vertex(v).unwrap();
-        }
-    }
-    ctx.end().unwrap();
-    ctx.end_object().unwrap();
-    id
-}
+mod common;
+use common::new_object as define;
 
 fn limit_of(e: &CoreError) -> u64 {
     match e {

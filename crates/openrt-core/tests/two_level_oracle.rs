@@ -4,21 +4,12 @@
 use glam::{Mat4, Quat, Vec3};
 use openrt_accel::oracle::BruteForce;
 use openrt_accel::{Aabb, Hit, Ray, Triangle, meshgen};
-use openrt_core::{Context, InstanceId, ObjectId, PrimitiveKind};
+use openrt_core::{Context, InstanceId, ObjectId};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
-fn define(ctx: &mut Context, id: ObjectId, tris: &[Triangle]) {
-    ctx.begin_object(id).unwrap();
-    ctx.begin(PrimitiveKind::Triangles).unwrap();
-    for t in tris {
-        for &v in t {
-            ctx.vertex(v).unwrap();
-        }
-    }
-    ctx.end().unwrap();
-    ctx.end_object().unwrap();
-}
+mod common;
+use common::define;
 
 fn random_transform(rng: &mut SmallRng) -> Mat4 {
     let axis = Vec3::new(
