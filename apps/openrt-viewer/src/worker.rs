@@ -104,6 +104,32 @@ impl Drop for Worker {
     }
 }
 
+/// Gives the scene's context a pool of `threads` threads (when its pool
+/// has another size) and makes sure the renderer runs on that same pool:
+/// one set of threads commits and renders.
+fn share_pool(
+    player: &mut ScenePlayer,
+    renderer: &mut Option<Renderer>,
+    threads: usize,
+) -> Result<(), openrt_core::CoreError> {
+    let mut pool = player.ctx_mut().pool()?;
+    if pool.threads() != threads {
+        // The old pool goes first, so its threads are not counted twice.
+        *renderer = None;
+        player.ctx_mut().set_threads(threads)?;
+        pool = player.ctx_mut().pool()?;
+    }
+    if !renderer.as_ref().is_some_and(|r| r.pool().same(&pool)) {
+        let backend = renderer.as_ref().map(Renderer::backend);
+        let mut r = Renderer::with_pool(pool);
+        if let Some(b) = backend {
+            r.set_backend(b);
+        }
+        *renderer = Some(r);
+    }
+    Ok(())
+}
+
 fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()) {
     let mut player: Option<ScenePlayer> = None;
     let mut renderer: Option<Renderer> = None;
@@ -139,15 +165,7 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                     backend,
                 } => {
                     let Some(p) = player.as_mut() else { continue };
-                    let pool = if renderer.as_ref().is_some_and(|r| r.threads() == threads) {
-                        Ok(())
-                    } else {
-                        // The old pool goes first, so its threads are not counted twice.
-                        renderer = None;
-                        Renderer::new(threads)
-                            .map(|r| renderer = Some(r))
-                            .map_err(|e| e.to_string())
-                    };
+                    let pool = share_pool(p, &mut renderer, threads).map_err(|e| e.to_string());
                     match (pool, renderer.as_mut()) {
                         (Err(e), _) => Reply::Error(e),
                         (Ok(()), None) => Reply::Error("render: no render pool".into()),

@@ -9,7 +9,7 @@ use glam::Vec3;
 use openrt_accel::oracle::BruteForce;
 use openrt_accel::{BuilderKind, Hit};
 use openrt_accel::{PacketWidth, Ray};
-use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, offset_ray_origin};
+use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool, offset_ray_origin};
 use openrt_scene::ScenePlayer;
 
 /// Options of a benchmark run.
@@ -119,18 +119,23 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
     let samples: Vec<u32> = (0..o.frames)
         .map(|k| ((k as u64 + 1) * u64::from(n) / (o.frames as u64 + 1)) as u32)
         .collect();
-    // One pool per (threads, backend), packets first.
-    let renderers: Vec<(usize, Renderer)> = o
+    // One pool per thread count, shared by the commit and a renderer per
+    // backend (packets first).
+    let pools: Vec<(usize, ThreadPool)> = o
         .threads
         .iter()
-        .flat_map(|&t| {
+        .map(|&t| ThreadPool::new(t).map(|p| (t, p)).map_err(|e| e.to_string()))
+        .collect::<Result<_, String>>()?;
+    let renderers: Vec<(usize, Renderer)> = pools
+        .iter()
+        .flat_map(|(t, pool)| {
             Backend::ALL.iter().map(move |&b| {
-                let mut r = Renderer::new(t).map_err(|e| e.to_string())?;
+                let mut r = Renderer::with_pool(pool.clone());
                 r.set_backend(b);
-                Ok((t, r))
+                (*t, r)
             })
         })
-        .collect::<Result<_, String>>()?;
+        .collect();
     // Warm-up: a peer backend builds its own scene on its first frame,
     // as the kd trees were built by the warm-up commit above.
     {
@@ -149,8 +154,9 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
     let (mut tri, mut inst) = (0, 0);
     // Commit and render on the same number of threads: each thread count
     // plays the sampled frames with a commit pool of its size.
-    for &threads in &o.threads {
-        player.ctx_mut().set_threads(threads).map_err(|e| e.to_string())?;
+    for (threads, pool) in &pools {
+        let threads = *threads;
+        player.ctx_mut().set_pool(pool);
         player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
         let mut kd_images: Vec<Image> = Vec::new();
         for &f in &samples {
@@ -408,14 +414,15 @@ const CLOSE_DB: f64 = 35.0;
 
 fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<Quality>, String> {
     let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+    let threads = *o.threads.iter().max().unwrap_or(&1);
+    player.ctx_mut().set_threads(threads).map_err(|e| e.to_string())?;
+    let r = Renderer::with_pool(player.ctx_mut().pool().map_err(|e| e.to_string())?);
     let f = player.frames() / 2;
     let t = player.time_of(f);
     player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
     player.set_time(t).map_err(|e| e.to_string())?;
     let scene = player.ctx().scene();
     let (cam, env) = (player.camera(t), player.env());
-    let threads = *o.threads.iter().max().unwrap_or(&1);
-    let r = Renderer::new(threads).map_err(|e| e.to_string())?;
     let full = RenderSettings {
         spp: REFERENCE_SPP,
         texture_filter: TextureFilter::Trilinear,
@@ -590,21 +597,37 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
     Ok(q)
 }
 
-/// Fast vs SAH trees for the moving triangles of `name`: commit and render time per frame.
+/// Fast (refitted or afresh) vs SAH trees for the moving triangles of
+/// `name`: commit and render time per frame. Each sampled frame is committed
+/// right after the frame before it, as when the animation plays, so that a
+/// refit starts from the last frame's tree.
 fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(), String> {
     let _ = writeln!(
         out,
         "\n| moving-object builder | commit ms (median) | Whitted render ms | frame ms |\n|---|---:|---:|---:|"
     );
-    for b in [BuilderKind::Fast, BuilderKind::Sah] {
+    for (label, b, refit) in [
+        ("fast, refitted (default)", BuilderKind::Fast, true),
+        ("fast, afresh", BuilderKind::Fast, false),
+        ("SAH", BuilderKind::Sah, false),
+    ] {
         let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
         player.ctx_mut().set_redefinition_builder(b);
+        player.ctx_mut().set_refit(refit);
         player.ctx_mut().set_promote_after(None);
+        player
+            .ctx_mut()
+            .set_threads(*o.threads.iter().max().unwrap_or(&1))
+            .map_err(|e| e.to_string())?;
+        let r = Renderer::with_pool(player.ctx_mut().pool().map_err(|e| e.to_string())?);
         player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
-        let r = Renderer::new(*o.threads.iter().max().unwrap_or(&1)).map_err(|e| e.to_string())?;
         let (mut c, mut rt) = (Vec::new(), Vec::new());
         for k in 0..o.frames.max(3) {
-            let t = player.time_of(((k + 1) * player.frames() as usize / (o.frames.max(3) + 1)) as u32);
+            let f = ((k + 1) * player.frames() as usize / (o.frames.max(3) + 1)) as u32;
+            for g in f.saturating_sub(2)..f {
+                player.set_time(player.time_of(g)).map_err(|e| e.to_string())?;
+            }
+            let t = player.time_of(f);
             let st = player.set_time(t).map_err(|e| e.to_string())?;
             c.push(st.total_ms);
             let (_, fs) = r
@@ -618,9 +641,130 @@ fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(), String
             rt.push(fs.render_ms);
         }
         let (c, rt) = (median(c), median(rt));
-        let _ = writeln!(out, "| {b:?} | {c:.2} | {rt:.1} | {:.1} |", c + rt);
+        let _ = writeln!(out, "| {label} | {c:.2} | {rt:.1} | {:.1} |", c + rt);
     }
     Ok(())
+}
+
+/// One museum's moving triangles rebuilt three ways on the same frames
+/// (every other frame of the animation, in order, so that refits see the
+/// motion of a played animation): the fast builder afresh, the fast tree
+/// refitted from the last frame's (with its quality check), and with
+/// `--features embree` Embree's LOW build; each on `threads` threads.
+struct Rebuild {
+    scene: String,
+    triangles: usize,
+    fresh_ms: f64,
+    refit_ms: f64,
+    refits: usize,
+    frames: usize,
+    fresh_cost: f64,
+    refit_cost: f64,
+    embree_ms: Option<f64>,
+}
+
+fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
+    use openrt_accel::{BspBuilder, FastParams, KdTree};
+    let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+    player.ctx_mut().set_promote_after(None);
+    let pool = BspBuilder::new(threads);
+    let params = FastParams::default();
+    let (mut fresh, mut refit) = (Vec::new(), Vec::new());
+    #[cfg(feature = "embree")]
+    let mut emb = Vec::new();
+    #[cfg(not(feature = "embree"))]
+    let emb: Vec<f64> = Vec::new();
+    let (mut fresh_cost, mut refit_cost, mut refits, mut triangles) = (0.0, 0.0, 0, 0);
+    let mut prev: Option<KdTree> = None;
+    let frames: Vec<u32> = (0..player.frames()).step_by(2).collect();
+    for &f in &frames {
+        let st = player.set_time(player.time_of(f)).map_err(|e| e.to_string())?;
+        let scene = player.ctx().scene();
+        let Some(tris) = st
+            .builds
+            .iter()
+            .filter(|b| b.builder == BuilderKind::Fast)
+            .find_map(|b| scene.instances().iter().find(|i| i.object == b.object))
+            .map(|i| i.geometry.tree.triangles().to_vec())
+        else {
+            continue;
+        };
+        triangles = tris.len();
+        let t0 = Instant::now();
+        let a = pool
+            .install(|| KdTree::build_fast(tris.clone()))
+            .map_err(|e| e.to_string())?;
+        fresh.push(t0.elapsed().as_secs_f64() * 1e3);
+        let t0 = Instant::now();
+        let b = pool
+            .install(|| match &prev {
+                Some(p) => KdTree::refit_fast(p, tris.clone(), &params),
+                None => KdTree::build_fast(tris.clone()),
+            })
+            .map_err(|e| e.to_string())?;
+        refit.push(t0.elapsed().as_secs_f64() * 1e3);
+        refits += usize::from(b.stats().refitted);
+        fresh_cost += a.sah_cost();
+        refit_cost += b.sah_cost();
+        prev = Some(b);
+        #[cfg(feature = "embree")]
+        {
+            let t0 = Instant::now();
+            let m = openrt_accel::EmbreeMesh::new(&tris, false)?;
+            emb.push(t0.elapsed().as_secs_f64() * 1e3);
+            drop(m);
+        }
+    }
+    let n = fresh.len();
+    if n == 0 {
+        return Err(format!("{name}: no object was rebuilt with the fast builder"));
+    }
+    Ok(Rebuild {
+        scene: name.to_string(),
+        triangles,
+        fresh_ms: median(fresh),
+        refit_ms: median(refit),
+        refits,
+        frames: n,
+        fresh_cost: fresh_cost / n as f64,
+        refit_cost: refit_cost / n as f64,
+        embree_ms: (!emb.is_empty()).then(|| median(emb)),
+    })
+}
+
+/// The rebuild table of the museums in `o`; returns its rows.
+fn rebuilds(o: &BenchOptions, out: &mut String) -> Result<Vec<Rebuild>, String> {
+    let threads = *o.threads.iter().max().unwrap_or(&1);
+    let names: Vec<&String> = o.scenes.iter().filter(|s| s.starts_with("museum")).collect();
+    if names.is_empty() {
+        return Ok(Vec::new());
+    }
+    let _ = writeln!(
+        out,
+        "\n## Rebuilding the moving triangles ({threads} threads)\n\nEvery other frame of each museum's animation, in order; per frame the moving triangles are built afresh by the fast builder, refitted on the last frame's tree (`KdTree::refit_fast`: the old split planes with the new triangles, leaves that overflow split further, rebuilt afresh when the SAH cost exceeds {:.2}x the last full build's; what a commit does by default), and{} built by Embree at LOW quality; medians. SAH cost: expected steps and tests per ray (`KdTree::sah_cost`), mean over the frames.\n\n| scene | triangles | fast afresh ms | refit ms | refitted frames | Embree LOW ms | Embree / refit | SAH cost afresh | SAH cost refit |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        openrt_accel::DEFAULT_REFIT_COST_LIMIT,
+        if cfg!(feature = "embree") {
+            ""
+        } else {
+            " (with `--features embree`)"
+        }
+    );
+    let mut rows = Vec::new();
+    for name in names {
+        eprintln!("bench: rebuilds on {name}");
+        let r = rebuild_figures(name, threads)?;
+        let (e, ratio) = match r.embree_ms {
+            Some(e) => (format!("{e:.3}"), format!("{:.2}", e / r.refit_ms.max(1e-9))),
+            None => ("-".into(), "-".into()),
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.3} | {:.3} | {} / {} | {e} | {ratio} | {:.2} | {:.2} |",
+            r.scene, r.triangles, r.fresh_ms, r.refit_ms, r.refits, r.frames, r.fresh_cost, r.refit_cost
+        );
+        rows.push(r);
+    }
+    Ok(rows)
 }
 
 /// The same frames and primary rays through an Embree two-level scene:
@@ -972,6 +1116,8 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
             .max_by_key(|r| r.threads)
             .map(Row::fps)
     };
+    let mut rebuild_md = String::new();
+    let rebuild_rows = rebuilds(o, &mut rebuild_md)?;
     let _ = writeln!(md, "\n## Targets (this machine)\n");
     let mut target = |what: &str, got: Option<f64>, goal: f64, unit: &str, higher: bool| {
         let line = match got {
@@ -990,6 +1136,28 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     target("kitchen GL-like", fps("kitchen", "GL-like"), 26.0, "fps", true);
     let m16 = rows.iter().find(|r| r.scene == "museum16k").map(|r| r.fast_ms);
     target("museum 16k rebuild", m16, 2.0, "ms", false);
+    for r in &rebuild_rows {
+        target(
+            &format!(
+                "{} moving triangles, Embree LOW build time / our refit time (rebuild table)",
+                r.scene
+            ),
+            r.embree_ms.map(|e| e / r.refit_ms.max(1e-9)),
+            1.0,
+            "x",
+            true,
+        );
+        target(
+            &format!(
+                "{} refitted tree's SAH cost / fresh tree's (render cost proxy)",
+                r.scene
+            ),
+            Some(r.refit_cost / r.fresh_cost.max(1e-9)),
+            1.05,
+            "x",
+            false,
+        );
+    }
     let scal = rows
         .iter()
         .filter(|r| r.scene == "kitchen" && r.mode == "Whitted")
@@ -1039,10 +1207,11 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
         eprintln!("bench: builders on {name}");
         let _ = writeln!(
             md,
-            "\n### Fast vs SAH trees for the moving triangles ({name})\n\nSame geometry, so the same image (error 0); the cost moves between commit and render:"
+            "\n### Fast vs SAH trees for the moving triangles ({name})\n\nSame triangles; the cost moves between commit and render:"
         );
         builders(o, name, &mut md)?;
     }
+    md.push_str(&rebuild_md);
     #[cfg(feature = "embree")]
     {
         let _ = writeln!(

@@ -313,8 +313,17 @@ fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
         .map_err(|e| format!("--threads: {e}"))
 }
 
-/// The render pool for the quality options: thread count and backend.
-fn renderer(q: &Quality) -> Result<Renderer, String> {
+/// The renderer for the quality options (backend), on the scene's pool
+/// (`commit_threads` sized it): one pool commits and renders.
+fn renderer(player: &mut ScenePlayer, q: &Quality) -> Result<Renderer, String> {
+    let pool = player.ctx_mut().pool().map_err(|e| format!("--threads: {e}"))?;
+    let mut r = Renderer::with_pool(pool);
+    r.set_backend(q.backend);
+    Ok(r)
+}
+
+/// A renderer of its own pool (`--threads`), for a run that opens its scene itself.
+fn own_renderer(q: &Quality) -> Result<Renderer, String> {
     let mut r = Renderer::new(threads(q)).map_err(|e| format!("--threads: {e}"))?;
     r.set_backend(q.backend);
     Ok(r)
@@ -380,7 +389,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             };
             let commit = player.set_time(t).map_err(|e| e.to_string())?;
             let s = settings(&player, &quality);
-            let renderer = renderer(&quality)?;
+            let renderer = renderer(&mut player, &quality)?;
             let (img, stats, net) = render_frame(&mut player, t, &s, &renderer, cluster)?;
             save_png(&output, &img)?;
             if let Some(net) = net {
@@ -463,7 +472,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                     plot,
                 },
                 &s,
-                &renderer(&quality)?,
+                &own_renderer(&quality)?,
             )?;
             print!("{summary}");
             Ok(())
@@ -492,7 +501,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 None => Box::new(std::io::stdout()),
             };
             let s = settings(&player, &quality);
-            let renderer = renderer(&quality)?;
+            let renderer = renderer(&mut player, &quality)?;
             let bar = ProgressBar::new(u64::from(range.end - range.start));
             bar.set_style(
                 ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta} {msg}")

@@ -45,10 +45,8 @@ pub fn run(o: &SoakOptions, settings: &RenderSettings, renderer: &Renderer) -> R
         return Err("soak: --every must be at least 1 and --frames at least 10 samples".into());
     }
     let mut player = ScenePlayer::open(Some(&o.scene)).map_err(|e| e.to_string())?;
-    player
-        .ctx_mut()
-        .set_threads(renderer.threads())
-        .map_err(|e| e.to_string())?;
+    // One pool commits and renders.
+    player.ctx_mut().set_pool(renderer.pool());
     let mut sink: Option<Box<dyn std::io::Write>> = match &o.output {
         Some(p) => Some(Box::new(std::io::BufWriter::new(
             std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,

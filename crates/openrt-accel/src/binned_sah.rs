@@ -130,6 +130,7 @@ pub(crate) fn build_binned_sah(
         prim_ids: b.prim_ids,
         bounds,
         depth: b.depth_reached,
+        cost: None,
     })
 }
 

@@ -11,6 +11,7 @@
 //!   `min_leaf * leaf_growth^depth` primitives;
 //! - depth limited to `depth_factor` times the SAH builder's limit.
 
+use crate::SahParams;
 use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, stitch, too_many_nodes};
 use crate::sah_build::{BuiltTree, default_max_depth};
 use crate::{Aabb, AccelError, Triangle};
@@ -33,10 +34,47 @@ pub struct FastParams {
     /// Build the top levels' subtrees on several threads (one level per
     /// doubling of the available cores).
     pub parallel: bool,
+    /// [`crate::KdTree::refit_fast`] keeps a refitted tree while its SAH
+    /// cost is at most this factor times the cost of the last full build
+    /// in its line, and builds afresh beyond it.
+    pub refit_cost_limit: f64,
 }
 
 /// Smallest node built in parallel.
-const PARALLEL_MIN: usize = 4096;
+pub(crate) const PARALLEL_MIN: usize = 4096;
+
+/// Default [`FastParams::refit_cost_limit`]: a refitted tree may cost 25%
+/// more than the last full build before it is rebuilt (measured on the
+/// museum's animart in docs/PERFORMANCE.md).
+pub const DEFAULT_REFIT_COST_LIMIT: f64 = 1.25;
+
+/// A primitive and its box clipped to the current cell.
+pub(crate) type Item = (u32, Aabb);
+
+/// The valid triangles as items, with the box around them.
+pub(crate) fn items_of(tris: &[Triangle], valid: &[bool]) -> Result<(Vec<Item>, Aabb), AccelError> {
+    if tris.len() > MAX_FIELD as usize {
+        return Err(AccelError::TooManyPrimitives {
+            count: tris.len(),
+            limit: MAX_FIELD as usize,
+        });
+    }
+    let item = |(i, t): (usize, &Triangle)| valid[i].then(|| (i as u32, Aabb::from_points(t)));
+    let items: Vec<Item> = tris.iter().enumerate().filter_map(item).collect();
+    let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(i.1));
+    Ok((items, bounds))
+}
+
+/// Levels of a tree built on two threads each: one per doubling of the
+/// threads of the rayon pool the build runs in (the commit lends it its
+/// pool, so no thread is spawned per build).
+pub(crate) fn parallel_levels(params: &FastParams) -> u32 {
+    if params.parallel {
+        rayon::current_num_threads().next_power_of_two().trailing_zeros()
+    } else {
+        0
+    }
+}
 
 impl Default for FastParams {
     fn default() -> Self {
@@ -53,75 +91,98 @@ impl Default for FastParams {
             traversal_cost: 1.0,
             intersection_cost: 0.1,
             parallel: true,
+            refit_cost_limit: DEFAULT_REFIT_COST_LIMIT,
         }
     }
 }
 
 pub(crate) fn build_fast(tris: &[Triangle], valid: &[bool], params: &FastParams) -> Result<BuiltTree, AccelError> {
-    if tris.len() > MAX_FIELD as usize {
-        return Err(AccelError::TooManyPrimitives {
-            count: tris.len(),
-            limit: MAX_FIELD as usize,
-        });
-    }
-    let mut items = Vec::with_capacity(tris.len());
-    let mut bounds = Aabb::EMPTY;
-    for (i, t) in tris.iter().enumerate() {
-        if valid[i] {
-            let b = Aabb::from_points(t);
-            bounds = bounds.union(b);
-            items.push((i as u32, b));
-        }
-    }
-    let max_depth = ((default_max_depth(items.len()) as f32 * params.depth_factor) as usize).min(MAX_DEPTH - 1);
-    let mut b = Fast {
-        params: *params,
-        nodes: Vec::with_capacity(items.len()),
-        prim_ids: Vec::with_capacity(items.len() * 2),
-        max_depth,
-        depth_reached: 0,
-    };
+    let (items, bounds) = items_of(tris, valid)?;
+    let mut b = Fast::new(params, items.len());
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
-        // The threads of the rayon pool the build runs in (the commit lends
-        // it its pool): no thread is spawned per build.
-        let cores = rayon::current_num_threads();
-        let levels = if params.parallel {
-            cores.next_power_of_two().trailing_zeros()
-        } else {
-            0
-        };
-        b.node_parallel(bounds, items, 0, levels)?;
+        b.node_parallel(bounds, items, 0, parallel_levels(params))?;
     }
-    Ok(BuiltTree {
-        nodes: b.nodes,
-        prim_ids: b.prim_ids,
-        bounds,
-        depth: b.depth_reached,
-    })
+    Ok(b.finish(bounds))
 }
 
 /// A planned split with its children.
-struct Split {
-    axis: usize,
-    position: f32,
-    lcell: Aabb,
-    left: Vec<(u32, Aabb)>,
-    rcell: Aabb,
-    right: Vec<(u32, Aabb)>,
+pub(crate) struct Split {
+    pub(crate) axis: usize,
+    pub(crate) position: f32,
+    pub(crate) lcell: Aabb,
+    pub(crate) left: Vec<Item>,
+    pub(crate) rcell: Aabb,
+    pub(crate) right: Vec<Item>,
 }
 
-struct Fast {
+/// A tree under construction: depth-first nodes and leaf lists.
+pub(crate) struct Fast {
     params: FastParams,
-    nodes: Vec<KdNode>,
-    prim_ids: Vec<u32>,
-    max_depth: usize,
-    depth_reached: usize,
+    pub(crate) nodes: Vec<KdNode>,
+    pub(crate) prim_ids: Vec<u32>,
+    pub(crate) max_depth: usize,
+    pub(crate) depth_reached: usize,
+    /// Sum over the nodes of cell area times node cost (a step for an
+    /// interior node, a test per reference for a leaf, at the costs of
+    /// [`KdTree::sah_cost`](crate::KdTree::sah_cost)).
+    pub(crate) cost: f64,
 }
 
 impl Fast {
-    fn leaf(&mut self, items: &[(u32, Aabb)]) -> Result<(), AccelError> {
+    /// An empty builder for `count` primitives.
+    pub(crate) fn new(params: &FastParams, count: usize) -> Self {
+        Self {
+            params: *params,
+            nodes: Vec::with_capacity(count),
+            prim_ids: Vec::with_capacity(count * 2),
+            max_depth: ((default_max_depth(count) as f32 * params.depth_factor) as usize).min(MAX_DEPTH - 1),
+            depth_reached: 0,
+            cost: 0.0,
+        }
+    }
+
+    /// A builder for a subtree built on another thread.
+    pub(crate) fn sub(&self) -> Self {
+        Self {
+            params: self.params,
+            nodes: Vec::new(),
+            prim_ids: Vec::new(),
+            max_depth: self.max_depth,
+            depth_reached: 0,
+            cost: 0.0,
+        }
+    }
+
+    pub(crate) fn finish(self, bounds: Aabb) -> BuiltTree {
+        let root = f64::from(bounds.surface_area());
+        BuiltTree {
+            nodes: self.nodes,
+            prim_ids: self.prim_ids,
+            bounds,
+            depth: self.depth_reached,
+            cost: Some(if root > 0.0 && root.is_finite() {
+                self.cost / root
+            } else {
+                0.0
+            }),
+        }
+    }
+
+    /// Counts an interior node of cell `cell` in [`Self::cost`].
+    pub(crate) fn interior_cost(&mut self, cell: &Aabb) {
+        self.cost += f64::from(SahParams::default().traversal_cost) * f64::from(cell.surface_area());
+    }
+
+    /// Largest leaf at `depth`.
+    pub(crate) fn max_leaf(&self, depth: usize) -> f32 {
+        self.params.min_leaf * self.params.leaf_growth.powi(depth as i32)
+    }
+
+    pub(crate) fn leaf(&mut self, cell: &Aabb, items: &[Item]) -> Result<(), AccelError> {
+        self.cost +=
+            f64::from(SahParams::default().intersection_cost) * items.len() as f64 * f64::from(cell.surface_area());
         let offset = self.prim_ids.len();
         if offset > u32::MAX as usize - items.len() || items.len() > MAX_FIELD as usize {
             return Err(too_many_nodes());
@@ -132,11 +193,10 @@ impl Fast {
     }
 
     /// The split of a node: `None` makes a leaf.
-    fn plan(&self, cell: &Aabb, items: &[(u32, Aabb)], depth: usize) -> Option<(usize, f32)> {
+    fn plan(&self, cell: &Aabb, items: &[Item], depth: usize) -> Option<(usize, f32)> {
         let n = items.len();
         let p = self.params;
-        let max_leaf = p.min_leaf * p.leaf_growth.powi(depth as i32);
-        if n as f32 <= max_leaf || depth >= self.max_depth {
+        if n as f32 <= self.max_leaf(depth) || depth >= self.max_depth {
             return None;
         }
         let axis = cell.longest_axis();
@@ -185,12 +245,12 @@ impl Fast {
 
     /// Children cells and item lists; `None` when every item straddles.
     #[allow(clippy::type_complexity)]
-    fn partition(
+    pub(crate) fn partition(
         cell: &Aabb,
-        items: Vec<(u32, Aabb)>,
+        items: Vec<Item>,
         axis: usize,
         split: f32,
-    ) -> Result<(Aabb, Vec<(u32, Aabb)>, Aabb, Vec<(u32, Aabb)>), Vec<(u32, Aabb)>> {
+    ) -> Result<(Aabb, Vec<Item>, Aabb, Vec<Item>), Vec<Item>> {
         let n = items.len();
         let mut lcell = *cell;
         lcell.max[axis] = split;
@@ -217,10 +277,10 @@ impl Fast {
     }
 
     /// Plans and partitions a node; `Ok(None)` when it became a leaf.
-    fn split(&mut self, cell: &Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<Option<Split>, AccelError> {
+    pub(crate) fn split(&mut self, cell: &Aabb, items: Vec<Item>, depth: usize) -> Result<Option<Split>, AccelError> {
         self.depth_reached = self.depth_reached.max(depth);
         let Some((axis, split)) = self.plan(cell, &items, depth) else {
-            return self.leaf(&items).map(|()| None);
+            return self.leaf(cell, &items).map(|()| None);
         };
         match Self::partition(cell, items, axis, split) {
             Ok((lcell, left, rcell, right)) => Ok(Some(Split {
@@ -231,11 +291,11 @@ impl Fast {
                 rcell,
                 right,
             })),
-            Err(items) => self.leaf(&items).map(|()| None),
+            Err(items) => self.leaf(cell, &items).map(|()| None),
         }
     }
 
-    fn node(&mut self, cell: Aabb, items: Vec<(u32, Aabb)>, depth: usize) -> Result<(), AccelError> {
+    pub(crate) fn node(&mut self, cell: Aabb, items: Vec<Item>, depth: usize) -> Result<(), AccelError> {
         let Some(Split {
             axis,
             position: split,
@@ -252,6 +312,7 @@ impl Fast {
             return Err(too_many_nodes());
         }
         self.nodes.push(KdNode::interior(axis, split));
+        self.interior_cost(&cell);
         self.node(lcell, left, depth + 1)?;
         let above = self.nodes.len() as u32;
         self.nodes[index].set_above_child(above);
@@ -261,13 +322,7 @@ impl Fast {
     /// Like [`Self::node`], building the two children on two threads for
     /// `levels` levels when the node is large (the commit runs while the
     /// render threads wait, so the cores are free).
-    fn node_parallel(
-        &mut self,
-        cell: Aabb,
-        items: Vec<(u32, Aabb)>,
-        depth: usize,
-        levels: u32,
-    ) -> Result<(), AccelError> {
+    fn node_parallel(&mut self, cell: Aabb, items: Vec<Item>, depth: usize, levels: u32) -> Result<(), AccelError> {
         if levels == 0 || items.len() < PARALLEL_MIN {
             return self.node(cell, items, depth);
         }
@@ -282,29 +337,28 @@ impl Fast {
         else {
             return Ok(());
         };
-        let sub = || Fast {
-            params: self.params,
-            nodes: Vec::new(),
-            prim_ids: Vec::new(),
-            max_depth: self.max_depth,
-            depth_reached: 0,
-        };
-        let (mut lb, mut rb) = (sub(), sub());
+        let (mut lb, mut rb) = (self.sub(), self.sub());
         let (lr, rr) = rayon::join(
             || lb.node_parallel(lcell, left, depth + 1, levels - 1),
             || rb.node_parallel(rcell, right, depth + 1, levels - 1),
         );
         lr?;
         rr?;
-        // Stitch: this node, the left subtree right after it, then the right subtree.
+        self.interior_cost(&cell);
+        self.stitch((axis, split), &lb, &rb)
+    }
+
+    /// Appends this node, the left subtree right after it, then the right subtree.
+    pub(crate) fn stitch(&mut self, split: (usize, f32), lb: &Self, rb: &Self) -> Result<(), AccelError> {
         stitch(
             &mut self.nodes,
             &mut self.prim_ids,
-            (axis, split),
+            split,
             (&lb.nodes, &lb.prim_ids),
             (&rb.nodes, &rb.prim_ids),
         )?;
         self.depth_reached = self.depth_reached.max(lb.depth_reached).max(rb.depth_reached);
+        self.cost += lb.cost + rb.cost;
         Ok(())
     }
 }

@@ -67,6 +67,15 @@ pub struct TreeStats {
     pub depth: usize,
     /// Build time in milliseconds.
     pub build_ms: f64,
+    /// Made by [`KdTree::refit_fast`] on the planes of an earlier tree
+    /// (`false`: built afresh).
+    pub refitted: bool,
+    /// SAH cost of the last full fast build in this tree's line, as the
+    /// builder estimates it ([`KdTree::sah_cost`], also counting interior
+    /// nodes whose cells turned out empty): the tree's own cost when it was
+    /// built afresh, the cost of the tree it was refitted from otherwise;
+    /// 0 for SAH trees, which are never refitted.
+    pub base_cost: f64,
     /// Heap bytes held by the tree: nodes, leaf indices (with block
     /// padding), leaf blocks and triangles.
     pub bytes: usize,
@@ -130,6 +139,31 @@ impl KdTree {
         Self::finish(tris, &valid, built, BuilderKind::Fast, start)
     }
 
+    /// The tree of `tris` (the triangles of `prev`'s object after they
+    /// moved) on the split planes of `prev`, a tree from the fast builder:
+    /// see `refit.rs`. When the result's SAH cost exceeds
+    /// `params.refit_cost_limit` times [`TreeStats::base_cost`] of `prev`,
+    /// or `prev` came from another builder, the tree is built afresh with
+    /// [`Self::build_fast_with`]; [`TreeStats::refitted`] tells which.
+    pub fn refit_fast(prev: &KdTree, tris: Vec<Triangle>, params: &FastParams) -> Result<Self, AccelError> {
+        let start = Instant::now();
+        if prev.stats.builder != BuilderKind::Fast {
+            return Self::build_fast_with(tris, params);
+        }
+        let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
+        let built = crate::refit::refit(&prev.nodes, &tris, &valid, params)?;
+        let cost = built.cost.unwrap_or(f64::INFINITY);
+        if cost > prev.stats.base_cost * params.refit_cost_limit {
+            let mut tree = Self::build_fast_with(tris, params)?;
+            tree.stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
+            return Ok(tree);
+        }
+        let mut tree = Self::finish(tris, &valid, built, BuilderKind::Fast, start)?;
+        tree.stats.refitted = true;
+        tree.stats.base_cost = prev.stats.base_cost;
+        Ok(tree)
+    }
+
     /// Builds with the given builder and its default parameters.
     pub fn build(tris: Vec<Triangle>, builder: BuilderKind) -> Result<Self, AccelError> {
         match builder {
@@ -150,6 +184,7 @@ impl KdTree {
             prim_ids,
             bounds,
             depth,
+            cost,
         } = built;
         let references = prim_ids.len();
         let (prim_ids, blocks) = pack_leaves(&mut nodes, &prim_ids, &tris)?;
@@ -166,12 +201,14 @@ impl KdTree {
             references,
             depth,
             build_ms: start.elapsed().as_secs_f64() * 1e3,
+            refitted: false,
+            base_cost: 0.0,
             bytes: size_of_val(nodes.as_slice())
                 + size_of_val(prim_ids.as_slice())
                 + size_of_val(blocks.as_slice())
                 + size_of_val(tris.as_slice()),
         };
-        let tree = Self {
+        let mut tree = Self {
             nodes,
             prim_ids,
             blocks,
@@ -179,6 +216,7 @@ impl KdTree {
             bounds,
             stats,
         };
+        tree.stats.base_cost = cost.unwrap_or(0.0);
         // NOTE: every build in a debug-assertion build (all tests) is checked,
         // up to a size where the O(N depth) check stays cheap.
         #[cfg(debug_assertions)]

@@ -42,6 +42,7 @@ mod leaf_blocks;
 mod numeric;
 mod packet;
 mod ray;
+mod refit;
 mod sah_build;
 mod toplevel;
 mod traverse;
@@ -57,7 +58,7 @@ pub use aabb::Aabb;
 #[cfg(feature = "embree")]
 pub use embree_peer::{EmbreeMesh, EmbreeTwoLevel};
 pub use error::AccelError;
-pub use fast_build::FastParams;
+pub use fast_build::{DEFAULT_REFIT_COST_LIMIT, FastParams};
 pub use hit::Hit;
 pub use kdnode::{KdNode, MAX_DEPTH};
 pub use kdtree::{BuilderKind, KdTree, TreeStats};

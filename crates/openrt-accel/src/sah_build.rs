@@ -119,6 +119,9 @@ pub(crate) struct BuiltTree {
     pub prim_ids: Vec<u32>,
     pub bounds: Aabb,
     pub depth: usize,
+    /// The tree's SAH cost as the fast builder estimates it while it
+    /// builds (`None`: not estimated).
+    pub cost: Option<f64>,
 }
 
 /// Builds an SAH kd-tree over the valid triangles (`valid[i]`).
@@ -173,6 +176,7 @@ pub(crate) fn build_sah(tris: &[Triangle], valid: &[bool], params: &SahParams) -
         prim_ids: b.prim_ids,
         bounds,
         depth: b.depth_reached,
+        cost: None,
     })
 }
 

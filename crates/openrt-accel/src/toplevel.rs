@@ -214,7 +214,7 @@ pub struct BspBuilder {
     /// PERF: spawning scoped threads every frame cost more than the tasks
     /// themselves at 10k instances on 16 cores; a rayon pool's threads wait
     /// between frames.
-    pool: Option<rayon::ThreadPool>,
+    pool: Option<std::sync::Arc<rayon::ThreadPool>>,
     /// Partition buffers of the parallel upper levels, kept between frames.
     buffers: Vec<Vec<Item>>,
 }
@@ -246,7 +246,8 @@ impl BspBuilder {
         let threads = threads.max(1);
         let pool = (threads > 1)
             .then(|| rayon::ThreadPoolBuilder::new().num_threads(threads).build().ok())
-            .flatten();
+            .flatten()
+            .map(std::sync::Arc::new);
         Self {
             threads,
             workers: Vec::new(),
@@ -254,6 +255,24 @@ impl BspBuilder {
             pool,
             buffers: Vec::new(),
         }
+    }
+
+    /// A builder running on `pool` (shared with whoever else holds it).
+    #[must_use]
+    pub fn with_pool(pool: std::sync::Arc<rayon::ThreadPool>) -> Self {
+        Self {
+            threads: pool.current_num_threads(),
+            workers: Vec::new(),
+            input: Vec::new(),
+            pool: Some(pool),
+            buffers: Vec::new(),
+        }
+    }
+
+    /// Threads the builder may use.
+    #[must_use]
+    pub fn threads(&self) -> usize {
+        self.threads
     }
 
     /// Runs `f` on the builder's threads (on the calling thread when it has

@@ -198,6 +198,9 @@ pub struct ChangeSet {
     pub objects: Vec<ObjectChange>,
     /// Instance changes, in slot order.
     pub instances: Vec<InstanceChange>,
+    /// The master refits fast trees ([`Context::set_refit`]): the replica
+    /// must too, to build the same trees.
+    pub refit: bool,
 }
 
 impl ChangeSet {
@@ -309,6 +312,7 @@ impl Context {
         let mut set = ChangeSet {
             frame,
             full: std::mem::take(&mut log.first),
+            refit: self.refit,
             ..ChangeSet::default()
         };
         if self.materials_dirty {
@@ -417,6 +421,7 @@ impl Context {
         }
         self.ensure_not_defining("apply_changes")?;
         self.promote_after = None;
+        self.refit = set.refit;
         if let Some(ms) = &set.materials {
             let mut table = Vec::with_capacity(ms.len());
             for m in ms {

@@ -26,6 +26,9 @@ pub struct BuildRecord {
     pub dropped: usize,
     /// Build time in milliseconds.
     pub ms: f64,
+    /// The fast tree was refitted on the last tree's planes
+    /// ([`Context::set_refit`]) rather than built afresh.
+    pub refitted: bool,
 }
 
 /// What a commit did and how long each step took.
@@ -77,9 +80,12 @@ impl CommitStats {
 }
 
 /// Builds an object tree; `fail` (tests only) counts down to an injected failure.
+/// `refit_from`: the object's last tree, to refit when it came from the
+/// fast builder and `builder` is the fast builder.
 fn build_tree(
     tris: Vec<openrt_accel::Triangle>,
     builder: BuilderKind,
+    refit_from: Option<&KdTree>,
     fail: Option<&mut usize>,
 ) -> Result<KdTree, openrt_accel::AccelError> {
     if let Some(n) = fail {
@@ -88,12 +94,26 @@ fn build_tree(
         }
         *n -= 1;
     }
-    KdTree::build(tris, builder)
+    match refit_from {
+        Some(prev) if builder == BuilderKind::Fast && prev.stats().builder == BuilderKind::Fast => {
+            KdTree::refit_fast(prev, tris, &openrt_accel::FastParams::default())
+        }
+        _ => KdTree::build(tris, builder),
+    }
 }
 
-/// Background SAH builds running at once, at most: they share the commit's
-/// pool, and a bound keeps them from filling it while a frame is built.
+/// Background SAH builds running at once, at most: they share the pool
+/// with the commit and the renderer, and a bound keeps them from filling
+/// it while a frame is built. A pool of `n` threads runs at most
+/// `n / 2` (at least one, at most this many), so a frame keeps at least
+/// half the threads while promotions run (one thread: a promotion holds it
+/// for one SAH build).
 pub const MAX_PROMOTIONS_IN_FLIGHT: usize = 2;
+
+/// Promotions a pool of `threads` threads runs at once.
+fn promotion_slots(threads: usize) -> usize {
+    (threads / 2).clamp(1, MAX_PROMOTIONS_IN_FLIGHT)
+}
 
 /// Commits with at least this many instances make their records in parallel.
 const PARALLEL_RECORDS: usize = 2_048;
@@ -188,9 +208,10 @@ impl Context {
                 // builder gets a copy (a memcpy, ~1% of a fast build).
                 let tris = mesh.triangles.clone();
                 let fail = self.fail_builds.as_mut();
+                let prev = slot.geometry.as_ref().filter(|_| self.refit).map(|g| &g.tree);
                 let tree = self
                     .bsp_builder
-                    .install(|| build_tree(tris, builder, fail))
+                    .install(|| build_tree(tris, builder, prev, fail))
                     .map_err(|source| CoreError::Accel { call: "commit", source })?;
                 stats.builds.push(BuildRecord {
                     object: id,
@@ -198,6 +219,7 @@ impl Context {
                     triangles: mesh.triangles.len(),
                     dropped: mesh.dropped,
                     ms: t0.elapsed().as_secs_f64() * 1e3,
+                    refitted: tree.stats().refitted,
                 });
                 staged[index] = Some(Arc::new(ObjectGeometry {
                     tree,
@@ -371,6 +393,7 @@ impl Context {
         stats: &mut CommitStats,
     ) {
         let fail = self.fail_promotions;
+        let slots = promotion_slots(self.bsp_builder.threads());
         let mut in_flight = self
             .objects
             .iter()
@@ -413,9 +436,7 @@ impl Context {
                 Some(Promotion::Ready { .. }) => {}
                 Some(p @ (Promotion::Running { .. } | Promotion::Failed { .. })) => slot.promotion = Some(p),
                 None => {
-                    if promote_after.is_some_and(|n| slot.unchanged_commits >= n)
-                        && in_flight < MAX_PROMOTIONS_IN_FLIGHT
-                    {
+                    if promote_after.is_some_and(|n| slot.unchanged_commits >= n) && in_flight < slots {
                         in_flight += 1;
                         let tris = geom.tree.triangles().to_vec();
                         let shading = Arc::clone(&geom.shading);
@@ -465,6 +486,8 @@ impl Context {
 mod tests {
     use glam::Vec3;
 
+    use super::promotion_slots;
+
     use crate::{Context, CoreError, PrimitiveKind};
 
     fn tri(ctx: &mut Context, id: crate::ObjectId, z: f32) {
@@ -484,6 +507,15 @@ mod tests {
     fn t_at(ctx: &Context, x: f32) -> Option<f32> {
         let r = openrt_accel::Ray::infinite(Vec3::new(x, 0.0, 10.0), -Vec3::Z);
         ctx.scene().intersect(&r).map(|h| h.t)
+    }
+
+    #[test]
+    fn promotions_leave_half_the_pool_to_frames() {
+        assert_eq!(
+            [1, 2, 3, 4, 8, 16].map(promotion_slots),
+            [1, 1, 1, 2, 2, 2],
+            "at least one, at most MAX_PROMOTIONS_IN_FLIGHT, never more than half"
+        );
     }
 
     #[test]

@@ -117,6 +117,9 @@ struct Definition {
 /// - `instantiate(id)` places the object with the current matrix.
 /// - Every misuse returns a [`CoreError`] naming the call; a failing call
 ///   changes nothing.
+// NOTE: its flags are independent (two dirty bits, a setting, a test hook),
+// not the states of one machine.
+#[allow(clippy::struct_excessive_bools)]
 pub struct Context {
     pub(crate) objects: Vec<ObjectSlot>,
     free_objects: Vec<u32>,
@@ -133,7 +136,15 @@ pub struct Context {
     pub(crate) scene: Arc<Scene>,
     pub(crate) promote_after: Option<u32>,
     pub(crate) redefinition_builder: openrt_accel::BuilderKind,
-    /// Keeps the top-level build's scratch memory from frame to frame.
+    /// Redefined objects whose tree came from the fast builder are refitted
+    /// ([`Context::set_refit`]).
+    pub(crate) refit: bool,
+    /// The pool of the commit, the background builds and the renderers
+    /// given it ([`Context::pool`]); `None` only when no thread could be
+    /// started (the commit then runs on the calling thread).
+    pool: Option<crate::ThreadPool>,
+    /// Keeps the top-level build's scratch memory from frame to frame; runs
+    /// on `pool`.
     pub(crate) bsp_builder: openrt_accel::BspBuilder,
     /// Tests: object builds left before an injected build failure.
     pub(crate) fail_builds: Option<usize>,
@@ -153,6 +164,11 @@ impl Context {
     /// An empty context with the default material.
     #[must_use]
     pub fn new() -> Self {
+        let pool = crate::ThreadPool::all_cores().ok();
+        let bsp_builder = pool.as_ref().map_or_else(
+            || openrt_accel::BspBuilder::new(1),
+            |p| openrt_accel::BspBuilder::with_pool(std::sync::Arc::clone(p.rayon())),
+        );
         Self {
             objects: Vec::new(),
             free_objects: Vec::new(),
@@ -169,7 +185,9 @@ impl Context {
             scene: Arc::new(Scene::default()),
             promote_after: Some(3),
             redefinition_builder: openrt_accel::BuilderKind::Fast,
-            bsp_builder: openrt_accel::BspBuilder::default(),
+            refit: true,
+            pool,
+            bsp_builder,
             fail_builds: None,
             fail_promotions: false,
             change_log: None,
@@ -189,16 +207,52 @@ impl Context {
         self.redefinition_builder = builder;
     }
 
-    /// The threads of the commit's pool: the top-level build, the fast
-    /// builds of redefined objects, new instance records and the background
-    /// SAH builds (default: all cores). Trees do not depend on it.
+    /// Whether a redefined object whose last tree came from the fast
+    /// builder gets that tree's split planes with its new triangles
+    /// ([`KdTree::refit_fast`](openrt_accel::KdTree::refit_fast): rebuilt
+    /// afresh when its SAH cost grows past
+    /// [`DEFAULT_REFIT_COST_LIMIT`](openrt_accel::DEFAULT_REFIT_COST_LIMIT)
+    /// times the last full build's) rather than a tree built afresh.
+    /// Default: on. Trees, and so the images, then depend on the frames
+    /// committed before, not on the thread count.
+    pub fn set_refit(&mut self, refit: bool) {
+        self.refit = refit;
+    }
+
+    /// Gives the context a new pool of `threads` threads
+    /// ([`Context::set_pool`]; default: one per core). Trees do not depend
+    /// on it.
     ///
     /// # Errors
-    /// [`CoreError::Limit`] for 0 or more than [`MAX_THREADS`](crate::MAX_THREADS).
+    /// As [`ThreadPool::new`](crate::ThreadPool::new).
     pub fn set_threads(&mut self, threads: usize) -> Result<(), CoreError> {
         crate::check_threads("set_threads", threads)?;
-        self.bsp_builder = openrt_accel::BspBuilder::new(threads);
+        self.set_pool(&crate::ThreadPool::new(threads)?);
         Ok(())
+    }
+
+    /// Runs the commit (the top-level build, the fast builds of redefined
+    /// objects, new instance records) and the background SAH builds on
+    /// `pool`; give the same pool to the renderer
+    /// ([`Renderer::with_pool`](crate::Renderer::with_pool)) so that one
+    /// set of threads does everything.
+    pub fn set_pool(&mut self, pool: &crate::ThreadPool) {
+        self.bsp_builder = openrt_accel::BspBuilder::with_pool(Arc::clone(pool.rayon()));
+        self.pool = Some(pool.clone());
+    }
+
+    /// The context's pool, for a renderer to share
+    /// ([`Renderer::with_pool`](crate::Renderer::with_pool)).
+    ///
+    /// # Errors
+    /// [`CoreError::RenderThread`] when no pool could be started.
+    pub fn pool(&mut self) -> Result<crate::ThreadPool, CoreError> {
+        if let Some(p) = &self.pool {
+            return Ok(p.clone());
+        }
+        let p = crate::ThreadPool::all_cores()?;
+        self.set_pool(&p);
+        Ok(p)
     }
 
     /// The scene of the last commit.

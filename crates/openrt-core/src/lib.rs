@@ -84,6 +84,7 @@ mod limits;
 mod material;
 mod matrix_stack;
 mod object;
+mod pool;
 mod primitive;
 mod render;
 mod scene;
@@ -108,6 +109,7 @@ pub use limits::{
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{ObjectGeometry, ObjectMesh, ShadingData};
+pub use pool::ThreadPool;
 pub use primitive::PrimitiveKind;
 pub use render::{
     Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, packet_block, sample_offset,

@@ -1,13 +1,11 @@
-//! Parallel frame rendering: a persistent pool of worker threads taking
+//! Parallel frame rendering: tasks on the context's thread pool taking
 //! tiles from a shared counter.
 
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::thread::JoinHandle;
 use std::time::Instant;
 
-use crossbeam::channel::{Receiver, Sender, unbounded};
 use glam::Vec3;
 use openrt_accel::{PacketWidth, Ray, lanes_of};
 use parking_lot::Mutex;
@@ -16,8 +14,8 @@ use crate::camera::CameraRays;
 use crate::shade::{Cone, Shader};
 use crate::tracer::Tracer;
 use crate::{
-    Camera, CoreError, Environment, RENDER_STACK_BYTES, RayCounts, RenderMode, Scene, TextureFilter, check_depth,
-    check_image_size, check_spp, check_threads,
+    Camera, CoreError, Environment, RayCounts, RenderMode, Scene, TextureFilter, ThreadPool, check_depth,
+    check_image_size, check_spp,
 };
 
 /// Tile edge in pixels.
@@ -187,10 +185,6 @@ struct FrameJob {
     /// The tiles to render (all `n_tiles` of the frame when `None`).
     list: Option<Vec<u32>>,
     next: AtomicUsize,
-    /// Each worker sends its tiles once, when no tile is left.
-    results: Sender<Vec<TileResult>>,
-    /// The first worker panic of this frame.
-    failure: Mutex<Option<String>>,
 }
 
 struct TileResult {
@@ -199,12 +193,11 @@ struct TileResult {
     counts: RayCounts,
 }
 
-/// A persistent pool of render threads. Images are bit-identical whatever
+/// Renders frames on a [`ThreadPool`]. Images are bit-identical whatever
 /// the number of threads: every pixel is computed by the same code from the
 /// same inputs, only the assignment of tiles to threads varies.
 pub struct Renderer {
-    jobs: Option<Sender<Arc<FrameJob>>>,
-    workers: Vec<JoinHandle<()>>,
+    pool: ThreadPool,
     backend: Backend,
     width: PacketWidth,
     /// The Embree scene kept in step with the frames (Embree backends).
@@ -213,57 +206,29 @@ pub struct Renderer {
 }
 
 impl Renderer {
-    /// Starts `threads` workers, each with a stack of [`RENDER_STACK_BYTES`].
+    /// A renderer on a pool of its own with `threads` threads.
     ///
     /// # Errors
-    /// [`CoreError::Limit`] for 0 or more than [`MAX_THREADS`](crate::MAX_THREADS)
-    /// threads, [`CoreError::RenderThread`] when the system refuses a thread.
+    /// As [`ThreadPool::new`]: [`CoreError::Limit`] for 0 or more than
+    /// [`MAX_THREADS`](crate::MAX_THREADS) threads, [`CoreError::RenderThread`]
+    /// when the system refuses a thread.
     pub fn new(threads: usize) -> Result<Self, CoreError> {
-        check_threads("Renderer::new", threads)?;
-        let (tx, rx) = unbounded::<Arc<FrameJob>>();
-        let mut workers = Vec::with_capacity(threads);
-        for i in 0..threads {
-            let rx: Receiver<Arc<FrameJob>> = rx.clone();
-            let spawned = std::thread::Builder::new()
-                .name(format!("openrt-render-{i}"))
-                .stack_size(RENDER_STACK_BYTES)
-                .spawn(move || {
-                    while let Ok(job) = rx.recv() {
-                        // A panic is a bug; it fails this frame with an
-                        // error naming the thread, and the thread lives on.
-                        if let Err(p) = std::panic::catch_unwind(AssertUnwindSafe(|| render_tiles(&job))) {
-                            let what = p
-                                .downcast_ref::<&str>()
-                                .map(ToString::to_string)
-                                .or_else(|| p.downcast_ref::<String>().cloned())
-                                .unwrap_or_else(|| "unknown panic".into());
-                            let mut slot = job.failure.lock();
-                            slot.get_or_insert(format!("render thread {i} panicked: {what}"));
-                        }
-                    }
-                });
-            match spawned {
-                Ok(h) => workers.push(h),
-                Err(e) => {
-                    // The threads already started end when `tx` goes.
-                    drop(tx);
-                    for w in workers {
-                        let _ = w.join();
-                    }
-                    return Err(CoreError::RenderThread {
-                        reason: format!("cannot start render thread {i} of {threads}: {e}"),
-                    });
-                }
-            }
-        }
-        Ok(Self {
-            jobs: Some(tx),
-            workers,
+        crate::check_threads("Renderer::new", threads)?;
+        Ok(Self::with_pool(ThreadPool::new(threads)?))
+    }
+
+    /// A renderer on `pool`, typically the context's
+    /// ([`Context::pool`](crate::Context::pool)): commit, background builds
+    /// and rendering then share one set of threads.
+    #[must_use]
+    pub fn with_pool(pool: ThreadPool) -> Self {
+        Self {
+            pool,
             backend: Backend::default(),
             width: PacketWidth::detect(),
             #[cfg(feature = "embree")]
             embree: Arc::default(),
-        })
+        }
     }
 
     /// Chooses how rays find their hits (default [`Backend::Kd`]).
@@ -289,10 +254,16 @@ impl Renderer {
         self.width
     }
 
-    /// Number of worker threads.
+    /// Number of threads of the pool.
     #[must_use]
     pub fn threads(&self) -> usize {
-        self.workers.len()
+        self.pool.threads()
+    }
+
+    /// The pool the renderer runs on.
+    #[must_use]
+    pub fn pool(&self) -> &ThreadPool {
+        &self.pool
     }
 
     /// Renders one frame of `scene` seen by `camera`.
@@ -311,7 +282,7 @@ impl Renderer {
             rays,
             render_ms: secs * 1e3,
             mrays_per_s: rays.total() as f64 / secs.max(1e-9) / 1e6,
-            threads: self.workers.len(),
+            threads: self.pool.threads(),
         };
         Ok((image, stats))
     }
@@ -355,8 +326,7 @@ impl Renderer {
         }
         let list: Option<Vec<u32>> = only.map(<[u32]>::to_vec);
         let n_tiles = list.as_ref().map_or(all as usize, Vec::len);
-        let (rtx, rrx) = unbounded();
-        let job = Arc::new(FrameJob {
+        let job = FrameJob {
             scene: Arc::clone(scene),
             env: Arc::clone(env),
             cam,
@@ -369,38 +339,50 @@ impl Renderer {
             n_tiles,
             list,
             next: AtomicUsize::new(0),
-            results: rtx,
-            failure: Mutex::new(None),
-        });
-        let dead = || CoreError::RenderThread {
-            reason: "the render threads have stopped".into(),
         };
-        let jobs = self.jobs.as_ref().ok_or_else(dead)?;
-        for _ in 0..self.workers.len() {
-            jobs.send(Arc::clone(&job)).map_err(|_| dead())?;
+        let results: Mutex<Vec<TileResult>> = Mutex::new(Vec::with_capacity(n_tiles));
+        let failure: Mutex<Option<String>> = Mutex::new(None);
+        // One task per thread, each taking tiles until none is left and
+        // adding them to the results once (not once per tile).
+        let tasks = self.pool.threads();
+        self.pool.rayon().install(|| {
+            rayon::scope(|s| {
+                for i in 0..tasks {
+                    let (job, results, failure) = (&job, &results, &failure);
+                    s.spawn(move |_| {
+                        // A panic is a bug; it fails this frame with an
+                        // error naming the task, and the pool lives on.
+                        match std::panic::catch_unwind(AssertUnwindSafe(|| render_tiles(job))) {
+                            Ok(tiles) => results.lock().extend(tiles),
+                            Err(p) => {
+                                let what = p
+                                    .downcast_ref::<&str>()
+                                    .map(ToString::to_string)
+                                    .or_else(|| p.downcast_ref::<String>().cloned())
+                                    .unwrap_or_else(|| "unknown panic".into());
+                                failure
+                                    .lock()
+                                    .get_or_insert(format!("render task {i} panicked: {what}"));
+                            }
+                        }
+                    });
+                }
+            });
+        });
+        if let Some(reason) = failure.into_inner() {
+            return Err(CoreError::RenderThread { reason });
         }
-        let failure = Arc::clone(&job);
-        drop(job);
-        let mut out = Vec::with_capacity(n_tiles);
+        let tiles = results.into_inner();
+        if tiles.len() != n_tiles {
+            return Err(CoreError::RenderThread {
+                reason: format!("only {} of {n_tiles} tiles came back", tiles.len()),
+            });
+        }
         let mut rays = RayCounts::default();
-        // PERF: one message per worker per frame, not one per tile: a wake-up
-        // of this thread per tile cost ~10% of a GL-like kitchen frame.
-        while out.len() < n_tiles {
-            // Every worker drops the job when it is done, so the channel
-            // closes if a tile was lost.
-            let Ok(tiles) = rrx.recv() else {
-                return Err(CoreError::RenderThread {
-                    reason: failure
-                        .failure
-                        .lock()
-                        .take()
-                        .unwrap_or_else(|| format!("only {} of {n_tiles} tiles came back", out.len())),
-                });
-            };
-            for tile in tiles {
-                rays.add(&tile.counts);
-                out.push((tile.index as u32, tile.pixels));
-            }
+        let mut out = Vec::with_capacity(n_tiles);
+        for tile in tiles {
+            rays.add(&tile.counts);
+            out.push((tile.index as u32, tile.pixels));
         }
         Ok((out, rays))
     }
@@ -442,28 +424,19 @@ pub fn assemble<'a>(settings: &RenderSettings, tiles: impl IntoIterator<Item = (
     }
 }
 
-impl Drop for Renderer {
-    fn drop(&mut self) {
-        self.jobs = None;
-        for w in self.workers.drain(..) {
-            let _ = w.join();
-        }
-    }
-}
-
-fn render_tiles(job: &FrameJob) {
+fn render_tiles(job: &FrameJob) -> Vec<TileResult> {
     match job.backend {
         Backend::Kd | Backend::KdSingle => tiles(job, &*job.scene),
         #[cfg(feature = "embree")]
         Backend::Embree | Backend::EmbreePacket => {
             let guard = job.embree.read().unwrap_or_else(std::sync::PoisonError::into_inner);
-            tiles(job, &*guard);
+            tiles(job, &*guard)
         }
     }
 }
 
-/// Takes tiles until none is left, tracing with `tracer`, then sends them.
-fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) {
+/// Takes tiles until none is left, tracing with `tracer`; returns them.
+fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) -> Vec<TileResult> {
     let mut shader = Shader {
         scene: &job.scene,
         tracer,
@@ -484,9 +457,7 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) {
     loop {
         let k = job.next.fetch_add(1, Ordering::Relaxed);
         if k >= job.n_tiles {
-            // The receiver only goes away if render() panicked; nothing to do then.
-            let _ = job.results.send(done);
-            return;
+            return done;
         }
         let index = job.list.as_ref().map_or(k, |l| l[k] as usize);
         shader.counts = RayCounts::default();

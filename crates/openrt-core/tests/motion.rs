@@ -221,3 +221,37 @@ fn large_commits_make_their_records_in_parallel_as_small_ones_do() {
         }
     }
 }
+
+#[test]
+fn redefined_objects_refit_their_fast_trees_unless_told_not_to() {
+    for refit in [true, false] {
+        let mut ctx = Context::new();
+        ctx.set_promote_after(None);
+        ctx.set_refit(refit);
+        let morphing = ctx.gen_object();
+        define_sphere(&mut ctx, morphing, 2000, 0.0);
+        let _ = ctx.instantiate(morphing).unwrap();
+        ctx.commit().unwrap();
+        let mut refitted = Vec::new();
+        for f in 1..5 {
+            define_sphere(&mut ctx, morphing, 2000, 0.01 * f as f32);
+            let s = ctx.commit().unwrap();
+            assert_eq!(s.builds[0].builder, BuilderKind::Fast);
+            refitted.push(s.builds[0].refitted);
+            // The refitted tree answers as a fresh one would.
+            let scene = ctx.scene();
+            let fresh = scene.instances()[0].geometry.tree.triangles().to_vec();
+            let fresh = openrt_accel::KdTree::build_fast(fresh).unwrap();
+            for ray in meshgen::random_rays(300, f, openrt_accel::Aabb::new(Vec3::splat(-2.0), Vec3::splat(2.0))) {
+                assert_eq!(
+                    scene.intersect(&ray).map(|h| (h.t.to_bits(), h.prim)),
+                    fresh.intersect(&ray).map(|h| (h.t.to_bits(), h.prim))
+                );
+            }
+        }
+        // The first redefinition follows an SAH tree: built afresh; the
+        // next ones refit the fast tree before them.
+        let want: Vec<bool> = (1..5).map(|f| refit && f > 1).collect();
+        assert_eq!(refitted, want, "refit {refit}");
+    }
+}
