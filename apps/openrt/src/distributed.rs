@@ -13,8 +13,13 @@
 //!
 //! Faults: a worker whose replica fails (a build error) reports it and
 //! rank 0 returns an error naming the rank; a worker that stops answering
-//! for [`timeout`] makes rank 0 return an error naming it. A process that
-//! exits makes `mpirun` end the job (Open MPI's default error handler).
+//! for [`timeout`] makes rank 0 return an error naming it. A worker process
+//! that exits makes Open MPI's runtime end the whole job within about a
+//! second, with the worker's exit code, naming its rank (tested): Open MPI
+//! 4.1 without ULFM has no way for rank 0 to outlive a dead rank, and
+//! `mpirun --enable-recovery`, which keeps the others running, also keeps
+//! `MPI_Abort` from ending the job (a failing worker then hangs it), so it
+//! is not used.
 
 use std::time::{Duration, Instant};
 
@@ -395,6 +400,10 @@ impl Cluster {
         let fault = std::env::var("OPENRT_MPI_FAULT").ok();
         let mut env: Option<std::sync::Arc<Environment>> = None;
         while let Some(bytes) = self.broadcast(None) {
+            if fault.as_deref() == Some(&format!("exit:{}", self.rank())) {
+                // Tests: a worker process that dies.
+                std::process::exit(3);
+            }
             if fault.as_deref() == Some(&format!("hang:{}", self.rank())) {
                 // Tests: a worker that stops answering.
                 loop {

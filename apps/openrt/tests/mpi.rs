@@ -188,4 +188,16 @@ fn a_failing_or_silent_worker_is_reported_by_rank() {
     assert!(!out.status.success(), "{err}");
     assert!(err.contains("MPI rank 1 stopped answering"), "{err}");
     assert!(took < Duration::from_mins(1), "bounded: {took:?}");
+    // A worker process that exits: Open MPI's runtime ends the job (rank 0
+    // included: without ULFM no process survives a dead rank, and
+    // `--enable-recovery` keeps MPI_Abort from ending the job), with the
+    // worker's exit code and its rank named, within seconds.
+    let (out, took) = openrt(3, &args, &[("OPENRT_MPI_FAULT", "exit:2")]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("exited with non-zero status") && err.contains(",2]"),
+        "{err}"
+    );
+    assert!(took < Duration::from_secs(30), "bounded: {took:?}");
 }
