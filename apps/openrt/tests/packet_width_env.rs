@@ -1,11 +1,12 @@
 //! `OPENRT_PACKET_LANES` forces the packet width of the `kd` backend (4 is
 //! the portable baseline, 8 and 16 the AVX2 and AVX-512 widths); every
-//! width renders the bytes of the single-ray path.
+//! width renders the bytes of the single-ray path, with frustum culling and
+//! without it (`OPENRT_NO_FRUSTUM`).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn render(dir: &Path, tag: &str, backend: &str, lanes: Option<&str>, mode: &str) -> Vec<u8> {
+fn render(dir: &Path, tag: &str, backend: &str, lanes: Option<&str>, mode: &str, frustum: bool) -> Vec<u8> {
     let out = dir.join(format!("{tag}.png"));
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_openrt"));
     cmd.args([
@@ -22,6 +23,10 @@ fn render(dir: &Path, tag: &str, backend: &str, lanes: Option<&str>, mode: &str)
     .args(["--backend", backend, "-o"])
     .arg(&out);
     cmd.env_remove(openrt_accel::LANES_ENV);
+    cmd.env_remove(openrt_accel::NO_FRUSTUM_ENV);
+    if !frustum {
+        cmd.env(openrt_accel::NO_FRUSTUM_ENV, "1");
+    }
     if let Some(l) = lanes {
         cmd.env(openrt_accel::LANES_ENV, l);
     }
@@ -35,14 +40,23 @@ fn every_forced_width_gives_the_single_ray_bytes() {
     let dir: PathBuf = std::env::temp_dir().join(format!("openrt-lanes-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     for mode in ["gl", "whitted"] {
-        let want = render(&dir, &format!("single-{mode}"), "kd-single", None, mode);
+        let want = render(&dir, &format!("single-{mode}"), "kd-single", None, mode, true);
         for lanes in ["4", "8", "16"] {
-            let got = render(&dir, &format!("kd{lanes}-{mode}"), "kd", Some(lanes), mode);
-            assert!(
-                got == want,
-                "{mode}: {} = {lanes} gives other bytes",
-                openrt_accel::LANES_ENV
-            );
+            for frustum in [true, false] {
+                let got = render(
+                    &dir,
+                    &format!("kd{lanes}-{mode}-{frustum}"),
+                    "kd",
+                    Some(lanes),
+                    mode,
+                    frustum,
+                );
+                assert!(
+                    got == want,
+                    "{mode}: {} = {lanes}, frustum culling {frustum}, gives other bytes",
+                    openrt_accel::LANES_ENV
+                );
+            }
         }
     }
     let _ = std::fs::remove_dir_all(&dir);

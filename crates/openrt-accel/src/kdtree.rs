@@ -3,6 +3,7 @@
 use std::time::Instant;
 
 use crate::fast_build::{FastParams, build_fast};
+use crate::frustum::Frustum;
 use crate::kdnode::{KdNode, MAX_DEPTH, elide_empty_leaves};
 use crate::leaf_blocks::{
     BlockRay, LANES, PacketBlockRay, TriBlock, for_each_candidate_packet, leaf_any, leaf_closest, pack_leaves,
@@ -30,6 +31,12 @@ fn dense<const N: usize>(active: u32) -> bool {
 
 /// See [`dense`].
 const DENSE_SHARE: usize = 4;
+
+/// The packet's frustum when its lanes share an origin (primary rays), for
+/// whole-packet triangle culling (`frustum.rs`).
+fn frustum<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Frustum> {
+    Frustum::new(rays, lanes)
+}
 
 /// Each lane's own pre-test constants.
 fn block_rays<const N: usize>(rays: &[Ray; N]) -> [BlockRay; N] {
@@ -325,11 +332,13 @@ impl KdTree {
         // few lanes reach the leaf: then each lane pre-tests four
         // triangles at a time on its own (`dense`).
         let pbr = PacketBlockRay::new(rays, live);
+        let frustum = frustum(rays, live);
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                for_each_candidate_packet(pbr, active, leaf, &self.prim_ids, &self.blocks, |m, prim, tri| {
+                let f = frustum.as_ref();
+                for_each_candidate_packet(pbr, f, active, leaf, &self.prim_ids, &self.blocks, |m, prim, tri| {
                     for l in lanes_of(m) {
                         if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, closest[l]) {
                             closest[l] = t;
@@ -366,6 +375,7 @@ impl KdTree {
             return 0;
         }
         let pbr = PacketBlockRay::new(rays, live);
+        let frustum = frustum(rays, live);
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(
@@ -377,15 +387,24 @@ impl KdTree {
             &mut closest,
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                    return for_each_candidate_packet(pbr, active, leaf, &self.prim_ids, &self.blocks, |m, _, tri| {
-                        let mut hit = 0u32;
-                        for l in lanes_of(m) {
-                            if intersect_triangle(&rays[l], tri, closest[l]).is_some() {
-                                hit |= 1 << l;
+                    let f = frustum.as_ref();
+                    return for_each_candidate_packet(
+                        pbr,
+                        f,
+                        active,
+                        leaf,
+                        &self.prim_ids,
+                        &self.blocks,
+                        |m, _, tri| {
+                            let mut hit = 0u32;
+                            for l in lanes_of(m) {
+                                if intersect_triangle(&rays[l], tri, closest[l]).is_some() {
+                                    hit |= 1 << l;
+                                }
                             }
-                        }
-                        hit
-                    });
+                            hit
+                        },
+                    );
                 }
                 let brs = brs.get_or_insert_with(|| block_rays(rays));
                 let mut hit = 0u32;

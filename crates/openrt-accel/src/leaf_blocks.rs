@@ -18,6 +18,7 @@
 
 use wide::f32x4;
 
+use crate::frustum::Frustum;
 use crate::kdnode::KdNode;
 use crate::triangle::{TriHit, intersect_triangle};
 use crate::{AccelError, Ray, Triangle};
@@ -38,7 +39,7 @@ impl TriBlock {
     /// The block holding the triangles `ids` of `tris`; a short list is
     /// padded by repeating its last triangle (a repeated lane finds the same
     /// hit, which the closest-hit bound then rejects).
-    fn pack(ids: &[u32], tris: &[Triangle]) -> Self {
+    pub(crate) fn pack(ids: &[u32], tris: &[Triangle]) -> Self {
         debug_assert!(!ids.is_empty() && ids.len() <= LANES);
         let lane = |i: usize| &tris[ids[i.min(ids.len() - 1)] as usize];
         let coord =
@@ -46,6 +47,12 @@ impl TriBlock {
         Self {
             v: std::array::from_fn(|vert| std::array::from_fn(|axis| coord(vert, axis))),
         }
+    }
+
+    /// Coordinate `axis` of vertex `vert` of the four triangles.
+    #[inline]
+    pub(crate) fn coord(&self, vert: usize, axis: usize) -> f32x4 {
+        self.v[vert][axis]
     }
 
     /// Lane `i`'s triangle as stored.
@@ -297,8 +304,10 @@ impl<const N: usize> PacketBlockRay<N> {
 /// done. Per lane, the triangles reaching `visit` and their order are those
 /// that [`for_each_candidate`] gives that lane's ray alone.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn for_each_candidate_packet<const N: usize>(
     pbr: &PacketBlockRay<N>,
+    frustum: Option<&Frustum>,
     lanes: u32,
     leaf: KdNode,
     ids: &[u32],
@@ -310,7 +319,15 @@ pub(crate) fn for_each_candidate_packet<const N: usize>(
     let count = (leaf.prim_count() as usize).div_ceil(LANES);
     let mut live = lanes;
     for (k, b) in blocks[first..first + count].iter().enumerate() {
+        // Triangles no lane can hit are skipped for the whole packet.
+        let skip = frustum.map_or(0, |f| f.rejects(b));
+        if skip == (1 << LANES) - 1 {
+            continue;
+        }
         for j in 0..LANES {
+            if skip & (1 << j) != 0 {
+                continue;
+            }
             let tri = b.triangle(j);
             let m = pbr.candidates(&tri) & live;
             if m != 0 {

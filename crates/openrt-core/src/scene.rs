@@ -192,7 +192,8 @@ impl Scene {
         let mut best = [None; N];
         let mut local = *rays;
         let mut hits = [None; N];
-        self.walk_packet(rays, lanes, |i, inst, active, closest| {
+        let frustum = openrt_accel::Frustum::new(rays, lanes);
+        self.walk_packet(rays, lanes, frustum.as_ref(), |i, inst, active, closest| {
             for l in lanes_of(active) {
                 local[l] = inst.ray_to_object(&rays[l], closest[l]);
             }
@@ -218,8 +219,28 @@ impl Scene {
     /// mask of the lanes whose ray is blocked.
     #[must_use]
     pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
+        let frustum = openrt_accel::Frustum::new(rays, lanes);
+        self.occluded_packet_in(rays, lanes, frustum.as_ref())
+    }
+
+    /// [`Scene::occluded_packet`] for rays that all end at `target`
+    /// (`Ray::new(p, target - p, t_min, t_max)` with `t_max <= 1`: the
+    /// shadow rays towards one point light): instances that no lane's
+    /// segment can reach are skipped for the whole packet. Same answers.
+    #[must_use]
+    pub fn occluded_packet_toward<const N: usize>(&self, rays: &[Ray; N], lanes: u32, target: Vec3) -> u32 {
+        let frustum = openrt_accel::Frustum::toward(rays, lanes, target);
+        self.occluded_packet_in(rays, lanes, frustum.as_ref())
+    }
+
+    fn occluded_packet_in<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        frustum: Option<&openrt_accel::Frustum>,
+    ) -> u32 {
         let mut local = *rays;
-        self.walk_packet(rays, lanes, |_, inst, active, closest| {
+        self.walk_packet(rays, lanes, frustum, |_, inst, active, closest| {
             for l in lanes_of(active) {
                 local[l] = inst.ray_to_object(&rays[l], closest[l]);
             }
@@ -234,7 +255,13 @@ impl Scene {
     /// (a mailbox per lane, as [`Scene::walk`] keeps per ray). `test`
     /// returns the lanes it finished; the walk returns all finished lanes.
     #[inline]
-    fn walk_packet<const N: usize, F>(&self, rays: &[Ray; N], lanes: u32, mut test: F) -> u32
+    fn walk_packet<const N: usize, F>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        frustum: Option<&openrt_accel::Frustum>,
+        mut test: F,
+    ) -> u32
     where
         F: FnMut(u32, &InstanceRecord, u32, &mut [f32; N]) -> u32,
     {
@@ -254,6 +281,12 @@ impl Scene {
             |leaf, active, closest| {
                 let mut done = 0u32;
                 for &i in self.bsp.leaf_items(leaf) {
+                    let inst = &self.instances[i as usize];
+                    // Instances whose world box no lane can reach (the
+                    // packet's frustum) are skipped for the whole packet.
+                    if frustum.is_some_and(|f| f.rejects_box(&inst.world_bounds)) {
+                        continue;
+                    }
                     let mut fresh = 0u32;
                     for l in lanes_of(active & !done) {
                         let slot = &mut mailbox[l][i as usize % MAILBOX];
@@ -263,7 +296,7 @@ impl Scene {
                         }
                     }
                     if fresh != 0 {
-                        done |= test(i, &self.instances[i as usize], fresh, closest) & fresh;
+                        done |= test(i, inst, fresh, closest) & fresh;
                         if done == active {
                             break;
                         }

@@ -357,7 +357,7 @@ impl<T: Tracer> Shader<'_, T> {
                 blocked.push(if mask == 0 {
                     0
                 } else {
-                    self.tracer.occluded_packet(&shadow, mask)
+                    self.tracer.occluded_packet_toward(&shadow, mask, light.position)
                 });
             }
         }

@@ -16,6 +16,12 @@ pub(crate) trait Tracer: Sync {
     fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N];
     /// The lanes of a packet that are blocked.
     fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32;
+    /// [`Tracer::occluded_packet`] for rays that all end at `target` (shadow
+    /// rays towards one light), which a backend may cull with.
+    fn occluded_packet_toward<const N: usize>(&self, rays: &[Ray; N], lanes: u32, target: glam::Vec3) -> u32 {
+        let _ = target;
+        self.occluded_packet(rays, lanes)
+    }
 }
 
 impl Tracer for Scene {
@@ -37,5 +43,10 @@ impl Tracer for Scene {
     #[inline]
     fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
         Scene::occluded_packet(self, rays, lanes)
+    }
+
+    #[inline]
+    fn occluded_packet_toward<const N: usize>(&self, rays: &[Ray; N], lanes: u32, target: glam::Vec3) -> u32 {
+        Scene::occluded_packet_toward(self, rays, lanes, target)
     }
 }

@@ -1,0 +1,346 @@
+//! Whole-packet triangle culling for rays that share an origin.
+//!
+//! A packet of primary rays leaves the eye as a thin pyramid. Seen from the
+//! shared origin, each lane's ray is one point of the projection onto a
+//! plane across the dominant axis; the lanes' points fit in a rectangle.
+//! A triangle lying wholly in front of the origin projects to the convex
+//! hull of its vertices' projections, so when all three vertices project
+//! beyond the same side of the rectangle, no lane can hit it, and the leaf
+//! loop skips it for the whole packet (Reshetov, Soupikov & Hurley 2005 and
+//! Wald, Boulos & Shirley 2007 cull with the packet's frustum or interval
+//! the same way).
+//!
+//! NOTE: the answers do not change. A triangle is skipped only when its
+//! projection lies beyond the rectangle by a margin of
+//! [`FRUSTUM_MARGIN`] of the rectangle's coordinates, a hundred times the
+//! largest rounding error of the projections and of the lanes' own
+//! watertight tests, so that no lane's exact test could have hit it
+//! (tested against the per-lane loop on camera, hard and random packets).
+
+use wide::f32x4;
+
+use crate::leaf_blocks::TriBlock;
+use crate::{Ray, lanes_of};
+
+/// Relative margin by which a triangle's projection must clear the lanes'
+/// rectangle before the whole packet skips it.
+pub const FRUSTUM_MARGIN: f32 = 1e-4;
+
+/// Environment variable that turns frustum culling off.
+pub const NO_FRUSTUM_ENV: &str = "OPENRT_NO_FRUSTUM";
+
+/// `true` when [`NO_FRUSTUM_ENV`] is set (read once).
+fn off() -> bool {
+    static OFF: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *OFF.get_or_init(|| std::env::var_os(NO_FRUSTUM_ENV).is_some())
+}
+
+/// The rectangle of a packet's rays seen from their shared origin.
+pub struct Frustum {
+    /// The origin.
+    origin: glam::Vec3,
+    /// The rectangle, widened: low and high `u`, low and high `v`.
+    rect: [f32; 4],
+    /// Built by [`Frustum::new`] (lanes leaving one origin).
+    shared_origin: bool,
+    /// The origin, on the dominant axis `k` and the two others `a`, `b`.
+    o: [f32x4; 3],
+    /// `k`, `a`, `b`.
+    axes: [usize; 3],
+    /// Sign of the lanes' direction along `k`.
+    sign: f32x4,
+    /// The rectangle, widened by the margin: low and high `a / k` and `b / k`.
+    lo_u: f32x4,
+    hi_u: f32x4,
+    lo_v: f32x4,
+    hi_v: f32x4,
+}
+
+impl Frustum {
+    /// The frustum of the `lanes` of `rays`: `None` unless they share their
+    /// origin bit for bit and point the same way along one axis, where
+    /// every direction component is finite; `None` too when the environment
+    /// variable [`NO_FRUSTUM_ENV`] is set (A/B runs: the answers are the
+    /// same either way).
+    #[must_use]
+    pub fn new<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
+        if off() || lanes == 0 {
+            return None;
+        }
+        let o = rays[lanes.trailing_zeros() as usize].origin;
+        if lanes_of(lanes).any(|l| rays[l].origin.to_array().map(f32::to_bits) != o.to_array().map(f32::to_bits)) {
+            return None;
+        }
+        Self::from_apex(o, lanes_of(lanes).map(|l| rays[l].dir), true)
+    }
+
+    /// The frustum of the `lanes` of `rays` that all end at `target`: rays
+    /// `Ray::new(p, target - p, t_min, t_max)` with `t_max <= 1`, such as
+    /// shadow rays towards one point light. Seen from `target`, each lane
+    /// is a segment towards its origin. `None` when a lane does not end
+    /// within 1e-6 of the coordinates' scale of `target` (so far inside the
+    /// box margin of [`Frustum::rejects_box`]). Only whole instances are
+    /// culled with it, never triangles ([`Frustum::is_shared_origin`]).
+    #[must_use]
+    pub fn toward<const N: usize>(rays: &[Ray; N], lanes: u32, target: glam::Vec3) -> Option<Self> {
+        if off() || lanes == 0 || !target.is_finite() {
+            return None;
+        }
+        for l in lanes_of(lanes) {
+            let r = &rays[l];
+            let end = r.origin + r.dir;
+            let scale = end.abs().max(target.abs()).max(r.origin.abs()).max_element().max(1e-30);
+            let off_target = (end - target).abs().max_element();
+            if r.t_max.is_nan() || r.t_max > 1.0 || off_target.is_nan() || off_target > 1e-6 * scale {
+                return None;
+            }
+        }
+        Self::from_apex(target, lanes_of(lanes).map(|l| -rays[l].dir), false)
+    }
+
+    /// `true` for the frustum of rays leaving one origin (primary rays),
+    /// whose triangle test ([`Frustum::rejects`]) is exact.
+    #[must_use]
+    pub fn is_shared_origin(&self) -> bool {
+        self.shared_origin
+    }
+
+    /// The frustum with apex `o` around the directions `dirs` (seen from
+    /// `o`), which must point the same way along one axis.
+    fn from_apex(o: glam::Vec3, mut dirs: impl Iterator<Item = glam::Vec3>, shared_origin: bool) -> Option<Self> {
+        let first = dirs.next()?;
+        let k = first.abs().max_position();
+        let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+        let s = first[k].signum();
+        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) =
+            (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        for d in std::iter::once(first).chain(dirs) {
+            // NOTE: a zero or NaN component along `k` fails the test.
+            if d[k] * s <= 0.0 || !d.is_finite() {
+                return None;
+            }
+            let (u, v) = (d[a] / d[k], d[b] / d[k]);
+            lo_u = lo_u.min(u);
+            hi_u = hi_u.max(u);
+            lo_v = lo_v.min(v);
+            hi_v = hi_v.max(v);
+        }
+        if !(lo_u.is_finite() && hi_u.is_finite() && lo_v.is_finite() && hi_v.is_finite() && o.is_finite()) {
+            return None;
+        }
+        let m = FRUSTUM_MARGIN * (1.0 + lo_u.abs().max(hi_u.abs()).max(lo_v.abs()).max(hi_v.abs()));
+        Some(Self {
+            origin: o,
+            rect: [lo_u - m, hi_u + m, lo_v - m, hi_v + m],
+            shared_origin,
+            o: [o[k], o[a], o[b]].map(f32x4::splat),
+            axes: [k, a, b],
+            sign: f32x4::splat(s),
+            lo_u: f32x4::splat(lo_u - m),
+            hi_u: f32x4::splat(hi_u + m),
+            lo_v: f32x4::splat(lo_v - m),
+            hi_v: f32x4::splat(hi_v + m),
+        })
+    }
+
+    /// `true` when no lane can reach any point of `bounds` (an instance's
+    /// world box): the box, widened by [`FRUSTUM_MARGIN`] of its largest
+    /// coordinate (far more than the rounding of the transforms that take
+    /// rays to object space), lies in front of the origin and beyond one
+    /// side of the rectangle.
+    #[must_use]
+    pub fn rejects_box(&self, bounds: &crate::Aabb) -> bool {
+        let [k, a, b] = self.axes;
+        let s = self.sign.to_array()[0];
+        let o = self.origin;
+        let scale = bounds.min.abs().max(bounds.max.abs()).max(o.abs()).max_element();
+        let slack = FRUSTUM_MARGIN * scale;
+        // The widened box's range along an axis, relative to the origin,
+        // the dominant axis pointing forward.
+        let range = |axis: usize| {
+            let (lo, hi) = (bounds.min[axis] - slack - o[axis], bounds.max[axis] + slack - o[axis]);
+            if s > 0.0 { (lo, hi) } else { (-hi, -lo) }
+        };
+        let (zlo, zhi) = range(k);
+        if zlo.is_nan() || zlo <= 0.0 || !zhi.is_finite() {
+            return false;
+        }
+        let [lu, hu, lv, hv] = self.rect;
+        let beyond = |(lo, hi): (f32, f32), low: f32, high: f32| {
+            lo > (high * zlo).max(high * zhi) || hi < (low * zlo).min(low * zhi)
+        };
+        beyond(range(a), lu, hu) || beyond(range(b), lv, hv)
+    }
+
+    /// Bit `j` set: no lane can hit triangle `j` of `block` (a frustum of
+    /// [`Frustum::new`]; the object-space rays share the origin the
+    /// triangle test subtracts, so the test sees what the lanes' watertight
+    /// tests see).
+    #[inline]
+    pub(crate) fn rejects(&self, block: &TriBlock) -> u32 {
+        debug_assert!(self.shared_origin);
+        let [k, a, b] = self.axes;
+        let zero = f32x4::ZERO;
+        let (mut front, mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (
+            f32x4::splat(f32::from_bits(u32::MAX)),
+            f32x4::splat(f32::from_bits(u32::MAX)),
+            f32x4::splat(f32::from_bits(u32::MAX)),
+            f32x4::splat(f32::from_bits(u32::MAX)),
+            f32x4::splat(f32::from_bits(u32::MAX)),
+        );
+        for vert in 0..3 {
+            // Relative to the origin, the dominant axis pointing forward:
+            // the vertex projects to (x / z, y / z).
+            let z = (block.coord(vert, k) - self.o[0]) * self.sign;
+            let x = (block.coord(vert, a) - self.o[1]) * self.sign;
+            let y = (block.coord(vert, b) - self.o[2]) * self.sign;
+            front &= z.simd_gt(zero);
+            hi_u &= x.simd_gt(self.hi_u * z);
+            lo_u &= x.simd_lt(self.lo_u * z);
+            hi_v &= y.simd_gt(self.hi_v * z);
+            lo_v &= y.simd_lt(self.lo_v * z);
+        }
+        (front & (hi_u | lo_u | hi_v | lo_v)).to_bitmask()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+    use crate::triangle::intersect_triangle;
+    use crate::{Aabb, Triangle, meshgen};
+
+    /// 4x4 pixel blocks of a camera, as the renderer's primary packets.
+    fn blocks(eye: Vec3, at: Vec3) -> Vec<[Ray; 16]> {
+        let (w, h) = (32, 24);
+        let rays = meshgen::camera_rays(eye, at, w, h, 50.0);
+        let mut out = Vec::new();
+        for by in (0..h).step_by(4) {
+            for bx in (0..w).step_by(4) {
+                out.push(std::array::from_fn(|l| rays[(by + l / 4) * w + bx + l % 4]));
+            }
+        }
+        out
+    }
+
+    /// Triangles near and across the packets' edges: a soup, and small
+    /// triangles with a vertex exactly on a lane's ray.
+    fn triangles(eye: Vec3, packets: &[[Ray; 16]], seed: u64) -> Vec<Triangle> {
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let b = Aabb::new(eye + Vec3::new(-4.0, -3.0, -12.0), eye + Vec3::new(4.0, 3.0, -1.0));
+        let mut tris = meshgen::random_soup(600, seed, b, 0.4);
+        for p in packets.iter().step_by(3) {
+            let r = &p[rng.random_range(0..16)];
+            let v = r.origin + r.dir * rng.random_range(1.0..10.0);
+            let mut e = || Vec3::new(rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05), 0.0);
+            let (e1, e2) = (e(), e());
+            tris.push([v, v + e1, v + e2]);
+        }
+        tris
+    }
+
+    /// Every triangle the frustum rejects is missed by every lane's exact
+    /// test, and most far-off triangles are rejected.
+    fn check_triangles(eye: Vec3, at: Vec3, seed: u64) -> (usize, usize) {
+        let packets = blocks(eye, at);
+        let tris = triangles(eye, &packets, seed);
+        let (mut rejected, mut total) = (0, 0);
+        for p in &packets {
+            let f = Frustum::new(p, u32::from(u16::MAX)).expect("camera lanes share an origin");
+            assert!(f.is_shared_origin());
+            for chunk in (0..tris.len() as u32).collect::<Vec<_>>().chunks(4) {
+                let block = TriBlock::pack(chunk, &tris);
+                let mask = f.rejects(&block);
+                for (j, &id) in chunk.iter().enumerate() {
+                    total += 1;
+                    if mask & (1 << j) == 0 {
+                        continue;
+                    }
+                    rejected += 1;
+                    for r in p {
+                        assert!(
+                            intersect_triangle(r, &tris[id as usize], f32::INFINITY).is_none(),
+                            "triangle {id} rejected but hit"
+                        );
+                    }
+                }
+            }
+        }
+        (rejected, total)
+    }
+
+    #[test]
+    fn rejected_triangles_are_missed_by_every_lane() {
+        for (k, (eye, at)) in [
+            (Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0)),
+            (Vec3::new(0.3, 0.2, 0.1), Vec3::new(0.5, -0.2, -1.0)),
+            // Far from the world's origin: the rounding of the subtraction.
+            (Vec3::splat(3.0e4), Vec3::splat(3.0e4) + Vec3::new(0.1, 0.0, -1.0)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let (rejected, total) = check_triangles(eye, at, k as u64);
+            assert!(rejected * 2 > total, "only {rejected} of {total} culled");
+        }
+    }
+
+    #[test]
+    fn rejected_boxes_are_missed_by_every_lane() {
+        let mut rng = SmallRng::seed_from_u64(7);
+        let eye = Vec3::new(0.1, 0.5, 2.0);
+        let light = Vec3::new(2.0, 4.0, 1.0);
+        let packets = blocks(eye, Vec3::new(0.0, 0.0, -5.0));
+        let b = Aabb::new(Vec3::new(-5.0, -3.0, -10.0), Vec3::new(5.0, 5.0, 2.0));
+        let tris = meshgen::random_soup(400, 3, b, 0.6);
+        let (mut culled, mut n) = (0, 0);
+        for p in &packets {
+            // Shadow rays from points in front of the eye to the light.
+            let shadow: [Ray; 16] = std::array::from_fn(|l| {
+                let q = p[l].origin + p[l].dir * rng.random_range(2.0..8.0);
+                Ray::new(q, light - q, 0.0, 1.0 - 1e-4)
+            });
+            let frusta = [
+                Frustum::new(p, u32::from(u16::MAX)).unwrap(),
+                Frustum::toward(&shadow, u32::from(u16::MAX), light).expect("shadow rays end at the light"),
+            ];
+            for (f, rays) in frusta.iter().zip([p, &shadow]) {
+                for t in &tris {
+                    n += 1;
+                    if f.rejects_box(&Aabb::from_points(t)) {
+                        culled += 1;
+                        for r in rays {
+                            assert!(intersect_triangle(r, t, r.t_max).is_none());
+                        }
+                    }
+                }
+            }
+        }
+        assert!(culled * 2 > n, "only {culled} of {n} boxes culled");
+    }
+
+    #[test]
+    fn packets_without_a_shared_apex_get_no_frustum() {
+        let eye = Vec3::ZERO;
+        let p = blocks(eye, Vec3::new(0.0, 0.0, -1.0))[0];
+        let mut moved = p;
+        moved[3] = Ray::infinite(Vec3::new(0.0, 0.0, 1e-6), p[3].dir);
+        assert!(Frustum::new(&moved, u32::from(u16::MAX)).is_none());
+        // The moved lane left out of the mask: a frustum again.
+        assert!(Frustum::new(&moved, u32::from(u16::MAX) & !(1 << 3)).is_some());
+        // Opposite signs along the dominant axis, a zero component there.
+        let mut back = p;
+        back[0] = Ray::infinite(eye, Vec3::new(0.0, 0.0, 1.0));
+        assert!(Frustum::new(&back, u32::from(u16::MAX)).is_none());
+        let mut flat = p;
+        flat[0] = Ray::infinite(eye, Vec3::new(1.0, 0.0, 0.0));
+        assert!(Frustum::new(&flat, u32::from(u16::MAX)).is_none());
+        assert!(Frustum::new(&p, 0).is_none());
+        // Rays that do not end at the target.
+        assert!(Frustum::toward(&p, u32::from(u16::MAX), Vec3::new(0.0, 0.0, -1.0)).is_none());
+    }
+}
