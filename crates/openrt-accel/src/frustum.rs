@@ -54,6 +54,9 @@ pub struct Frustum {
     hi_u: f32x4,
     lo_v: f32x4,
     hi_v: f32x4,
+    /// [`FRUSTUM_MARGIN`] times the largest coordinate of the apex and the
+    /// lanes' origins: the positional slack of a shared-target frustum.
+    slack: f32x4,
 }
 
 impl Frustum {
@@ -71,7 +74,20 @@ impl Frustum {
         if lanes_of(lanes).any(|l| rays[l].origin.to_array().map(f32::to_bits) != o.to_array().map(f32::to_bits)) {
             return None;
         }
-        Self::from_apex(o, lanes_of(lanes).map(|l| rays[l].dir), true)
+        Self::from_apex(o, lanes_of(lanes).map(|l| rays[l].dir), true, 0.0)
+    }
+
+    /// [`Frustum::toward`] with the target the lanes end at: the first
+    /// lane's `origin + dir`, which every other lane must reach within the
+    /// same tolerance. For packets moved into an object's space, where the
+    /// light has no name.
+    #[must_use]
+    pub fn ending<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
+        if lanes == 0 {
+            return None;
+        }
+        let r = &rays[lanes.trailing_zeros() as usize];
+        Self::toward(rays, lanes, r.origin + r.dir)
     }
 
     /// The frustum of the `lanes` of `rays` that all end at `target`: rays
@@ -86,16 +102,18 @@ impl Frustum {
         if off() || lanes == 0 || !target.is_finite() {
             return None;
         }
+        let mut scale = target.abs().max_element();
         for l in lanes_of(lanes) {
             let r = &rays[l];
             let end = r.origin + r.dir;
+            scale = scale.max(r.origin.abs().max_element());
             let scale = end.abs().max(target.abs()).max(r.origin.abs()).max_element().max(1e-30);
             let off_target = (end - target).abs().max_element();
             if r.t_max.is_nan() || r.t_max > 1.0 || off_target.is_nan() || off_target > 1e-6 * scale {
                 return None;
             }
         }
-        Self::from_apex(target, lanes_of(lanes).map(|l| -rays[l].dir), false)
+        Self::from_apex(target, lanes_of(lanes).map(|l| -rays[l].dir), false, scale)
     }
 
     /// `true` for the frustum of rays leaving one origin (primary rays),
@@ -107,7 +125,12 @@ impl Frustum {
 
     /// The frustum with apex `o` around the directions `dirs` (seen from
     /// `o`), which must point the same way along one axis.
-    fn from_apex(o: glam::Vec3, mut dirs: impl Iterator<Item = glam::Vec3>, shared_origin: bool) -> Option<Self> {
+    fn from_apex(
+        o: glam::Vec3,
+        mut dirs: impl Iterator<Item = glam::Vec3>,
+        shared_origin: bool,
+        scale: f32,
+    ) -> Option<Self> {
         let first = dirs.next()?;
         let k = first.abs().max_position();
         let (a, b) = ((k + 1) % 3, (k + 2) % 3);
@@ -140,6 +163,7 @@ impl Frustum {
             hi_u: f32x4::splat(hi_u + m),
             lo_v: f32x4::splat(lo_v - m),
             hi_v: f32x4::splat(hi_v + m),
+            slack: f32x4::splat(FRUSTUM_MARGIN * scale),
         })
     }
 
@@ -178,7 +202,9 @@ impl Frustum {
     /// tests see).
     #[inline]
     pub(crate) fn rejects(&self, block: &TriBlock) -> u32 {
-        debug_assert!(self.shared_origin);
+        if !self.shared_origin {
+            return self.rejects_beyond(block);
+        }
         let [k, a, b] = self.axes;
         let zero = f32x4::ZERO;
         let (mut front, mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (
@@ -201,6 +227,37 @@ impl Frustum {
             lo_v &= y.simd_lt(self.lo_v * z);
         }
         (front & (hi_u | lo_u | hi_v | lo_v)).to_bitmask()
+    }
+
+    /// [`Frustum::rejects`] for a shared-target frustum (shadow rays): the
+    /// lanes' segments lie within the tolerance of [`Frustum::toward`] of
+    /// the lines from the apex through the rectangle, on the inner side of
+    /// each of its four planes. A triangle whose three vertices lie beyond
+    /// one plane by more than the slack (the frustum's, plus
+    /// [`FRUSTUM_MARGIN`] of the vertex's own largest coordinate, for the
+    /// rounding of the test) lies beyond it wholly, out of every segment's
+    /// reach.
+    #[inline]
+    fn rejects_beyond(&self, block: &TriBlock) -> u32 {
+        let [k, a, b] = self.axes;
+        let one = f32x4::splat(1.0);
+        let margin = f32x4::splat(FRUSTUM_MARGIN);
+        let all = f32x4::splat(f32::from_bits(u32::MAX));
+        let (mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (all, all, all, all);
+        let (wu_hi, wu_lo) = (one + self.hi_u.abs(), one + self.lo_u.abs());
+        let (wv_hi, wv_lo) = (one + self.hi_v.abs(), one + self.lo_v.abs());
+        for vert in 0..3 {
+            let (pk, pa, pb) = (block.coord(vert, k), block.coord(vert, a), block.coord(vert, b));
+            let slack = self.slack + margin * pk.abs().max(pa.abs()).max(pb.abs());
+            let z = (pk - self.o[0]) * self.sign;
+            let x = (pa - self.o[1]) * self.sign;
+            let y = (pb - self.o[2]) * self.sign;
+            hi_u &= (x - self.hi_u * z).simd_gt(slack * wu_hi);
+            lo_u &= (self.lo_u * z - x).simd_gt(slack * wu_lo);
+            hi_v &= (y - self.hi_v * z).simd_gt(slack * wv_hi);
+            lo_v &= (self.lo_v * z - y).simd_gt(slack * wv_lo);
+        }
+        (hi_u | lo_u | hi_v | lo_v).to_bitmask()
     }
 }
 
@@ -321,6 +378,48 @@ mod tests {
             }
         }
         assert!(culled * 2 > n, "only {culled} of {n} boxes culled");
+    }
+
+    #[test]
+    fn shadow_packets_cull_only_triangles_no_segment_reaches() {
+        let mut rng = SmallRng::seed_from_u64(9);
+        let eye = Vec3::new(0.1, 0.5, 2.0);
+        let light = Vec3::new(2.0, 4.0, 1.0);
+        let packets = blocks(eye, Vec3::new(0.0, 0.0, -5.0));
+        let b = Aabb::new(Vec3::new(-5.0, -3.0, -10.0), Vec3::new(5.0, 5.0, 2.0));
+        let mut tris = meshgen::random_soup(400, 5, b, 0.6);
+        let (mut culled, mut n) = (0, 0);
+        for p in &packets {
+            let shadow: [Ray; 16] = std::array::from_fn(|l| {
+                let q = p[l].origin + p[l].dir * rng.random_range(2.0..8.0);
+                Ray::new(q, light - q, 0.0, 1.0 - 1e-4)
+            });
+            // Small triangles touching segments, one of them at the light.
+            tris.truncate(400);
+            for r in shadow.iter().step_by(4) {
+                let v = r.origin + r.dir * rng.random_range(0.05..0.9999);
+                tris.push([v, v + Vec3::new(0.01, 0.0, 0.0), v + Vec3::new(0.0, 0.01, 0.002)]);
+            }
+            tris.push([light, light + Vec3::X * 0.01, light + Vec3::Y * 0.01]);
+            let f = Frustum::ending(&shadow, u32::from(u16::MAX)).expect("shadow rays share their end");
+            assert!(!f.is_shared_origin());
+            for chunk in (0..tris.len() as u32).collect::<Vec<_>>().chunks(4) {
+                let mask = f.rejects(&TriBlock::pack(chunk, &tris));
+                for (j, &id) in chunk.iter().enumerate() {
+                    n += 1;
+                    if mask & (1 << j) != 0 {
+                        culled += 1;
+                        for r in &shadow {
+                            assert!(
+                                intersect_triangle(r, &tris[id as usize], r.t_max).is_none(),
+                                "triangle {id} culled but hit"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(culled * 2 > n, "only {culled} of {n} triangles culled");
     }
 
     #[test]

@@ -32,10 +32,11 @@ fn dense<const N: usize>(active: u32) -> bool {
 /// See [`dense`].
 const DENSE_SHARE: usize = 4;
 
-/// The packet's frustum when its lanes share an origin (primary rays), for
-/// whole-packet triangle culling (`frustum.rs`).
+/// The packet's frustum when its lanes share an origin (primary rays) or
+/// an end point (shadow rays towards one light), for whole-packet triangle
+/// culling (`frustum.rs`).
 fn frustum<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Frustum> {
-    Frustum::new(rays, lanes)
+    Frustum::new(rays, lanes).or_else(|| Frustum::ending(rays, lanes))
 }
 
 /// Each lane's own pre-test constants.
