@@ -35,7 +35,7 @@ const DENSE_SHARE: usize = 4;
 /// The packet's frustum when its lanes share an origin (primary rays) or
 /// an end point (shadow rays towards one light), for whole-packet triangle
 /// culling (`frustum.rs`).
-fn frustum<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Frustum> {
+fn make_frustum<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Frustum> {
     Frustum::new(rays, lanes).or_else(|| Frustum::ending(rays, lanes))
 }
 
@@ -323,6 +323,21 @@ impl KdTree {
         closest: &mut [f32; N],
         hits: &mut [Option<Hit>; N],
     ) -> u32 {
+        self.intersect_packet_in(rays, lanes, closest, hits, None)
+    }
+
+    /// [`KdTree::intersect_packet`] with the packet's frustum when the
+    /// caller has it (one of the rays of a larger mask, such as the world
+    /// frustum of a packet that an instance without a transform sees as
+    /// it is); `None`: made from the rays when a leaf first needs it.
+    pub fn intersect_packet_in<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        closest: &mut [f32; N],
+        hits: &mut [Option<Hit>; N],
+        frustum: Option<&Frustum>,
+    ) -> u32 {
         let (t0, t1, live) = self.bounds.clip_lanes(rays, lanes, closest);
         if live == 0 {
             return 0;
@@ -333,12 +348,12 @@ impl KdTree {
         // few lanes reach the leaf: then each lane pre-tests four
         // triangles at a time on its own (`dense`).
         let pbr = PacketBlockRay::new(rays, live);
-        let frustum = frustum(rays, live);
+        let mut own: Option<Option<Frustum>> = None;
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                let f = frustum.as_ref();
+                let f = frustum.or_else(|| own.get_or_insert_with(|| make_frustum(rays, live)).as_ref());
                 for_each_candidate_packet(pbr, f, active, leaf, &self.prim_ids, &self.blocks, |m, prim, tri| {
                     for l in lanes_of(m) {
                         if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, closest[l]) {
@@ -370,13 +385,20 @@ impl KdTree {
     /// mask of the lanes whose ray hits something in its interval.
     #[must_use]
     pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
+        self.occluded_packet_in(rays, lanes, None)
+    }
+
+    /// [`KdTree::occluded_packet`] with the packet's frustum when the caller
+    /// has it (see [`KdTree::intersect_packet_in`]).
+    #[must_use]
+    pub fn occluded_packet_in<const N: usize>(&self, rays: &[Ray; N], lanes: u32, frustum: Option<&Frustum>) -> u32 {
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
         let (t0, t1, live) = self.bounds.clip_lanes(rays, lanes, &closest);
         if live == 0 {
             return 0;
         }
         let pbr = PacketBlockRay::new(rays, live);
-        let frustum = frustum(rays, live);
+        let mut own: Option<Option<Frustum>> = None;
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(
@@ -388,7 +410,7 @@ impl KdTree {
             &mut closest,
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                    let f = frustum.as_ref();
+                    let f = frustum.or_else(|| own.get_or_insert_with(|| make_frustum(rays, live)).as_ref());
                     return for_each_candidate_packet(
                         pbr,
                         f,

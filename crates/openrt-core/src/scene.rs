@@ -197,7 +197,12 @@ impl Scene {
             for l in lanes_of(active) {
                 local[l] = inst.ray_to_object(&rays[l], closest[l]);
             }
-            let found = inst.geometry.tree.intersect_packet(&local, active, closest, &mut hits);
+            // An instance without a transform sees the world frustum as it is.
+            let f = frustum.as_ref().filter(|_| inst.identity);
+            let found = inst
+                .geometry
+                .tree
+                .intersect_packet_in(&local, active, closest, &mut hits, f);
             for l in lanes_of(found) {
                 if let Some(h) = hits[l] {
                     best[l] = Some(SceneHit {
@@ -244,7 +249,9 @@ impl Scene {
             for l in lanes_of(active) {
                 local[l] = inst.ray_to_object(&rays[l], closest[l]);
             }
-            inst.geometry.tree.occluded_packet(&local, active)
+            inst.geometry
+                .tree
+                .occluded_packet_in(&local, active, frustum.filter(|_| inst.identity))
         })
     }
 
