@@ -179,9 +179,15 @@ enum Command {
         /// Thread counts, comma-separated (default: 1 and all cores).
         #[arg(long, value_delimiter = ',')]
         threads: Option<Vec<usize>>,
-        /// Report file.
-        #[arg(short, long, default_value = "docs/BENCHMARKS.md")]
-        output: PathBuf,
+        /// Report file (default: docs/BENCHMARKS.md; with `--device`, docs/BENCHMARKS-DEVICE.md).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// A run on a larger machine (the 16-core device): thread counts
+        /// 1, 2, 4, 8 and 16 (up to the cores), the paper's range, and the
+        /// report written to docs/BENCHMARKS-DEVICE.md, which says when and
+        /// on what machine it ran.
+        #[arg(long)]
+        device: bool,
     },
     /// Plays a scene in a loop for many frames, sampling resident memory and frame time.
     Soak {
@@ -425,9 +431,23 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             height,
             threads,
             output,
+            device,
         } => {
             let all = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-            let mut threads = threads.unwrap_or_else(|| vec![1, all]);
+            let mut threads = threads.unwrap_or_else(|| {
+                if device {
+                    [1, 2, 4, 8, 16].into_iter().filter(|&t| t <= all).collect()
+                } else {
+                    vec![1, all]
+                }
+            });
+            let output = output.unwrap_or_else(|| {
+                PathBuf::from(if device {
+                    "docs/BENCHMARKS-DEVICE.md"
+                } else {
+                    "docs/BENCHMARKS.md"
+                })
+            });
             threads.sort_unstable();
             threads.dedup();
             if threads.contains(&0) || frames == 0 || width < 4 || height < 4 {
