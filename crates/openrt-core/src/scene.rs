@@ -278,6 +278,9 @@ impl Scene {
             return 0;
         }
         let mut mailbox = [[u32::MAX; MAILBOX]; N];
+        // The lanes that can reach an instance's world box, tested for the
+        // whole packet before any lane is moved to object space.
+        let boxes = openrt_accel::PacketBoxes::new(rays, live);
         traverse_packet(
             self.bsp.nodes(),
             rays,
@@ -302,6 +305,13 @@ impl Scene {
                             fresh |= 1 << l;
                         }
                     }
+                    // NOTE: a lane that misses the world box misses the
+                    // instance anywhere: it stays in the mailbox.
+                    let fresh = if fresh == 0 {
+                        0
+                    } else {
+                        boxes.reaching(&inst.world_bounds, fresh, closest)
+                    };
                     if fresh != 0 {
                         done |= test(i, inst, fresh, closest) & fresh;
                         if done == active {

@@ -7,7 +7,7 @@
 //!   every packet width.
 //! - `Backend::Kd` and `Backend::KdSingle` render the same bytes for every
 //!   shipped small scene, in both modes, on 1 and 2 threads and at every
-//!   packet width; the BART kitchen and museum frames too, when the data is
+//!   packet width; the BART kitchen, museum and robots frames too, when the data is
 //!   there (see `bart.rs` for how it is found).
 
 use std::path::{Path, PathBuf};
@@ -148,6 +148,10 @@ fn packets_answer_as_single_rays_on_the_bart_scenes() {
     sweep("kitchen", &mut k, &[0, 400], 80, 60);
     let mut m = ScenePlayer::open(Some(&dir.join("museum/museum5.aff"))).unwrap();
     sweep("museum5", &mut m, &[0, 200], 80, 60);
+    // 161 instances under affine motion: the packets' world-box and frustum
+    // culling of instances.
+    let mut r = ScenePlayer::open(Some(&dir.join("robots/Robot.aff"))).unwrap();
+    sweep("robots", &mut r, &[0, 400], 80, 60);
 }
 
 fn render(
@@ -212,6 +216,8 @@ fn kd_and_kd_single_render_the_same_bytes_on_the_bart_scenes() {
     same_bytes("kitchen", &mut k, 100);
     let mut m = ScenePlayer::open(Some(&dir.join("museum/museum5.aff"))).unwrap();
     same_bytes("museum5", &mut m, 100);
+    let mut r = ScenePlayer::open(Some(&dir.join("robots/Robot.aff"))).unwrap();
+    same_bytes("robots", &mut r, 400);
 }
 
 #[test]
