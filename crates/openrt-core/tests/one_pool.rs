@@ -6,22 +6,10 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use openrt_accel::{Triangle, meshgen};
-use openrt_core::{
-    Camera, Context, Environment, MaterialId, PointLight, PrimitiveKind, RenderMode, RenderSettings, Renderer,
-};
+use openrt_core::{Camera, Context, Environment, PointLight, RenderMode, RenderSettings, Renderer};
 
-fn define(ctx: &mut Context, id: openrt_core::ObjectId, tris: &[Triangle]) {
-    ctx.begin_object(id).unwrap();
-    ctx.material(MaterialId::DEFAULT).unwrap();
-    ctx.begin(PrimitiveKind::Triangles).unwrap();
-    for t in tris {
-        for &v in t {
-            ctx.vertex(v).unwrap();
-        }
-    }
-    ctx.end().unwrap();
-    ctx.end_object().unwrap();
-}
+mod common;
+use common::define;
 
 /// Threads of this process (Linux).
 #[cfg(target_os = "linux")]
