@@ -11,10 +11,11 @@
 //! builder. The tree's SAH cost is then compared with the cost of the last
 //! full build in its line: beyond [`FastParams::refit_cost_limit`] times
 //! that cost, it is built afresh (the quality check that bounds how far a
-//! refitted tree may degrade). Gu et al. ("Efficient BVH construction via
-//! approximate agglomerative clustering", HPG 2013) and Kopta et al.
-//! ("Fast, effective BVH updates for animated scenes", I3D 2012) study the
-//! same rebuild-or-update trade-off for BVHs.
+//! refitted tree may degrade). BVHs for deforming scenes make the same
+//! trade-off: refit every frame, rebuild when a quality measure says the
+//! tree has degraded (Lauterbach et al., "RT-DEFORM", 2006; Wald, Boulos &
+//! Shirley, "Ray tracing deformable scenes using dynamic bounding volume
+//! hierarchies", 2007).
 
 use crate::fast_build::{Fast, FastParams, Item, PARALLEL_MIN, items_of, parallel_levels};
 use crate::kdnode::{KdNode, MAX_NODES, too_many_nodes};
