@@ -80,7 +80,8 @@ impl<const N: usize> PacketBoxes<N> {
         }
         let mut hit = 0u32;
         for l in 0..N {
-            hit |= u32::from(near[l] <= far[l]) << l;
+            // NOTE: a NaN bound keeps the lane (the exact clip decides it).
+            hit |= u32::from(near[l] <= far[l] || t_max[l].is_nan()) << l;
         }
         // Lanes that could not be tested pass.
         (hit & check) | (lanes & !self.testable)
@@ -110,7 +111,10 @@ mod tests {
             if round % 4 == 1 {
                 rays[1] = Ray::new(rays[1].origin + Vec3::splat(1e5), rays[1].dir, 0.0, f32::INFINITY);
             }
-            let t_max: [f32; 16] = std::array::from_fn(|_| rng.random_range(0.5..20.0));
+            let mut t_max: [f32; 16] = std::array::from_fn(|_| rng.random_range(0.5..20.0));
+            if round % 4 == 2 {
+                t_max[2] = f32::NAN;
+            }
             let pb = PacketBoxes::new(&rays, u32::from(u16::MAX));
             let c = Vec3::new(
                 rng.random_range(-3.0..3.0),
@@ -128,6 +132,9 @@ mod tests {
             assert_eq!(got & !lanes, 0, "only lanes of the mask");
             let (_, _, exact) = b.clip_lanes(&rays, lanes, &t_max);
             assert_eq!(exact & !got, 0, "round {round}: a lane that meets the box was dropped");
+            if round % 4 == 2 {
+                assert_eq!(got & lanes & 4, lanes & 4, "a NaN bound keeps its lane");
+            }
             kept += got.count_ones();
             dropped += (lanes & !got).count_ones();
         }
