@@ -70,7 +70,8 @@ fn pick<T: Copy>(list: &[T], i: u8) -> Option<T> {
     (!list.is_empty()).then(|| list[i as usize % list.len()])
 }
 
-/// Closest hit, any hit and 4-lane packets agree on the rays around `o`.
+/// Closest hit, any hit and 4-lane packets (sharing an origin, or an end
+/// for shadow rays) agree on the rays around `o`.
 fn check_rays(ctx: &Context, o: Vec3, d: Vec3, t0: f32, t1: f32) {
     let scene = ctx.scene();
     let rays: [Ray; 4] = std::array::from_fn(|k| {
@@ -79,6 +80,17 @@ fn check_rays(ctx: &Context, o: Vec3, d: Vec3, t0: f32, t1: f32) {
     });
     let packet = scene.intersect_packet(&rays, 0b1111);
     let occluded = scene.occluded_packet(&rays, 0b1111);
+    // Shadow-like rays: from points around `o` to one target, as the
+    // renderer's shadow packets (culled with the frustum of their end).
+    let target = o + d;
+    let shadow: [Ray; 4] = std::array::from_fn(|k| {
+        let p = o + Vec3::new(0.0, k as f32 * 0.013, (k as f32).cos() * 0.011);
+        Ray::new(p, target - p, t0.max(0.0), 1.0 - 1e-4)
+    });
+    let toward = scene.occluded_packet_toward(&shadow, 0b1111, target);
+    for (k, r) in shadow.iter().enumerate() {
+        assert_eq!(scene.occluded(r), toward & (1 << k) != 0, "shadow packet lane {k}");
+    }
     for (k, r) in rays.iter().enumerate() {
         let hit = scene.intersect(r);
         assert_eq!(hit, packet[k], "packet lane {k} differs from the single ray");
