@@ -26,6 +26,9 @@ use crate::{Ray, lanes_of};
 /// rectangle before the whole packet skips it.
 pub const FRUSTUM_MARGIN: f32 = 1e-4;
 
+/// A lane mask with every lane set.
+const ALL: f32x4 = f32x4::new([f32::from_bits(u32::MAX); 4]);
+
 /// Environment variable that turns frustum culling off.
 pub const NO_FRUSTUM_ENV: &str = "OPENRT_NO_FRUSTUM";
 
@@ -94,22 +97,23 @@ impl Frustum {
     /// `Ray::new(p, target - p, t_min, t_max)` with `t_max <= 1`, such as
     /// shadow rays towards one point light. Seen from `target`, each lane
     /// is a segment towards its origin. `None` when a lane does not end
-    /// within 1e-6 of the coordinates' scale of `target` (so far inside the
-    /// box margin of [`Frustum::rejects_box`]). Only whole instances are
-    /// culled with it, never triangles ([`Frustum::is_shared_origin`]).
+    /// within 1e-6 of the coordinates' scale of `target` (far inside the
+    /// positional slack of [`Frustum::rejects_box`] and of the triangle
+    /// test, which for this frustum is a half-space test with that slack).
     #[must_use]
     pub fn toward<const N: usize>(rays: &[Ray; N], lanes: u32, target: glam::Vec3) -> Option<Self> {
         if off() || lanes == 0 || !target.is_finite() {
             return None;
         }
+        // The largest coordinate of the apex and the lanes' origins.
         let mut scale = target.abs().max_element();
         for l in lanes_of(lanes) {
             let r = &rays[l];
             let end = r.origin + r.dir;
             scale = scale.max(r.origin.abs().max_element());
-            let scale = end.abs().max(target.abs()).max(r.origin.abs()).max_element().max(1e-30);
+            let tolerance = 1e-6 * scale.max(end.abs().max_element()).max(1e-30);
             let off_target = (end - target).abs().max_element();
-            if r.t_max.is_nan() || r.t_max > 1.0 || off_target.is_nan() || off_target > 1e-6 * scale {
+            if r.t_max.is_nan() || r.t_max > 1.0 || off_target.is_nan() || off_target > tolerance {
                 return None;
             }
         }
@@ -196,10 +200,10 @@ impl Frustum {
         beyond(range(a), lu, hu) || beyond(range(b), lv, hv)
     }
 
-    /// Bit `j` set: no lane can hit triangle `j` of `block` (a frustum of
-    /// [`Frustum::new`]; the object-space rays share the origin the
-    /// triangle test subtracts, so the test sees what the lanes' watertight
-    /// tests see).
+    /// Bit `j` set: no lane can hit triangle `j` of `block`. For a frustum of
+    /// [`Frustum::new`] a projection test (the object-space rays share the
+    /// origin the watertight test subtracts, so it sees what the lanes'
+    /// tests see); for a shared target, [`Frustum::rejects_beyond`].
     #[inline]
     pub(crate) fn rejects(&self, block: &TriBlock) -> u32 {
         if !self.shared_origin {
@@ -207,13 +211,7 @@ impl Frustum {
         }
         let [k, a, b] = self.axes;
         let zero = f32x4::ZERO;
-        let (mut front, mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (
-            f32x4::splat(f32::from_bits(u32::MAX)),
-            f32x4::splat(f32::from_bits(u32::MAX)),
-            f32x4::splat(f32::from_bits(u32::MAX)),
-            f32x4::splat(f32::from_bits(u32::MAX)),
-            f32x4::splat(f32::from_bits(u32::MAX)),
-        );
+        let (mut front, mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (ALL, ALL, ALL, ALL, ALL);
         for vert in 0..3 {
             // Relative to the origin, the dominant axis pointing forward:
             // the vertex projects to (x / z, y / z).
@@ -242,8 +240,7 @@ impl Frustum {
         let [k, a, b] = self.axes;
         let one = f32x4::splat(1.0);
         let margin = f32x4::splat(FRUSTUM_MARGIN);
-        let all = f32x4::splat(f32::from_bits(u32::MAX));
-        let (mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (all, all, all, all);
+        let (mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (ALL, ALL, ALL, ALL);
         let (wu_hi, wu_lo) = (one + self.hi_u.abs(), one + self.lo_u.abs());
         let (wv_hi, wv_lo) = (one + self.hi_v.abs(), one + self.lo_v.abs());
         for vert in 0..3 {
@@ -298,6 +295,15 @@ mod tests {
             tris.push([v, v + e1, v + e2]);
         }
         tris
+    }
+
+    /// Shadow rays from points in front of the eye (along the camera
+    /// packet's rays) to the light, as the renderer makes them.
+    fn shadow_packet(p: &[Ray; 16], light: Vec3, rng: &mut SmallRng) -> [Ray; 16] {
+        std::array::from_fn(|l| {
+            let q = p[l].origin + p[l].dir * rng.random_range(2.0..8.0);
+            Ray::new(q, light - q, 0.0, 1.0 - 1e-4)
+        })
     }
 
     /// Every triangle the frustum rejects is missed by every lane's exact
@@ -356,11 +362,7 @@ mod tests {
         let tris = meshgen::random_soup(400, 3, b, 0.6);
         let (mut culled, mut n) = (0, 0);
         for p in &packets {
-            // Shadow rays from points in front of the eye to the light.
-            let shadow: [Ray; 16] = std::array::from_fn(|l| {
-                let q = p[l].origin + p[l].dir * rng.random_range(2.0..8.0);
-                Ray::new(q, light - q, 0.0, 1.0 - 1e-4)
-            });
+            let shadow = shadow_packet(p, light, &mut rng);
             let frusta = [
                 Frustum::new(p, u32::from(u16::MAX)).unwrap(),
                 Frustum::toward(&shadow, u32::from(u16::MAX), light).expect("shadow rays end at the light"),
@@ -390,10 +392,7 @@ mod tests {
         let mut tris = meshgen::random_soup(400, 5, b, 0.6);
         let (mut culled, mut n) = (0, 0);
         for p in &packets {
-            let shadow: [Ray; 16] = std::array::from_fn(|l| {
-                let q = p[l].origin + p[l].dir * rng.random_range(2.0..8.0);
-                Ray::new(q, light - q, 0.0, 1.0 - 1e-4)
-            });
+            let shadow = shadow_packet(p, light, &mut rng);
             // Small triangles touching segments, one of them at the light.
             tris.truncate(400);
             for r in shadow.iter().step_by(4) {

@@ -32,11 +32,20 @@ fn dense<const N: usize>(active: u32) -> bool {
 /// See [`dense`].
 const DENSE_SHARE: usize = 4;
 
-/// The packet's frustum when its lanes share an origin (primary rays) or
-/// an end point (shadow rays towards one light), for whole-packet triangle
-/// culling (`frustum.rs`).
-fn make_frustum<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Frustum> {
-    Frustum::new(rays, lanes).or_else(|| Frustum::ending(rays, lanes))
+/// The packet's frustum for whole-packet triangle culling (`frustum.rs`):
+/// the caller's (`given`), else one made from the rays on the first call
+/// (`own` keeps it) when the lanes share an origin (primary rays) or an
+/// end point (shadow rays towards one light).
+fn packet_frustum<'a, const N: usize>(
+    given: Option<&'a Frustum>,
+    own: &'a std::cell::OnceCell<Option<Frustum>>,
+    rays: &[Ray; N],
+    lanes: u32,
+) -> Option<&'a Frustum> {
+    given.or_else(|| {
+        own.get_or_init(|| Frustum::new(rays, lanes).or_else(|| Frustum::ending(rays, lanes)))
+            .as_ref()
+    })
 }
 
 /// Each lane's own pre-test constants.
@@ -348,12 +357,12 @@ impl KdTree {
         // few lanes reach the leaf: then each lane pre-tests four
         // triangles at a time on its own (`dense`).
         let pbr = PacketBlockRay::new(rays, live);
-        let mut own: Option<Option<Frustum>> = None;
+        let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                let f = frustum.or_else(|| own.get_or_insert_with(|| make_frustum(rays, live)).as_ref());
+                let f = packet_frustum(frustum, &own, rays, live);
                 for_each_candidate_packet(pbr, f, active, leaf, &self.prim_ids, &self.blocks, |m, prim, tri| {
                     for l in lanes_of(m) {
                         if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, closest[l]) {
@@ -398,7 +407,7 @@ impl KdTree {
             return 0;
         }
         let pbr = PacketBlockRay::new(rays, live);
-        let mut own: Option<Option<Frustum>> = None;
+        let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         traverse_packet(
@@ -410,7 +419,7 @@ impl KdTree {
             &mut closest,
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                    let f = frustum.or_else(|| own.get_or_insert_with(|| make_frustum(rays, live)).as_ref());
+                    let f = packet_frustum(frustum, &own, rays, live);
                     return for_each_candidate_packet(
                         pbr,
                         f,

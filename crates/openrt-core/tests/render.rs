@@ -3,25 +3,17 @@
 
 use std::sync::Arc;
 
+mod common;
+
 use glam::{Mat4, Vec3};
 use openrt_accel::{Triangle, meshgen};
 use openrt_core::{
-    Camera, Context, Environment, Image, Material, MaterialId, PointLight, PrimitiveKind, RenderMode, RenderSettings,
-    Renderer,
+    Camera, Context, Environment, Image, Material, MaterialId, PointLight, RenderMode, RenderSettings, Renderer,
 };
 
 fn object(ctx: &mut Context, tris: &[Triangle], material: MaterialId) -> openrt_core::ObjectId {
     let id = ctx.gen_object();
-    ctx.begin_object(id).unwrap();
-    ctx.material(material).unwrap();
-    ctx.begin(PrimitiveKind::Triangles).unwrap();
-    for t in tris {
-        for &v in t {
-            ctx.vertex(v).unwrap();
-        }
-    }
-    ctx.end().unwrap();
-    ctx.end_object().unwrap();
+    common::define_with(ctx, id, tris, Some(material));
     id
 }
 

@@ -4,11 +4,19 @@
 #![allow(dead_code)]
 
 use openrt_accel::Triangle;
-use openrt_core::{Context, ObjectId, PrimitiveKind};
+use openrt_core::{Context, MaterialId, ObjectId, PrimitiveKind};
 
 /// Defines `id` as the triangles `tris` (unwrapping every call).
 pub fn define(ctx: &mut Context, id: ObjectId, tris: &[Triangle]) {
+    define_with(ctx, id, tris, None);
+}
+
+/// [`define`] with `material` set inside the definition.
+pub fn define_with(ctx: &mut Context, id: ObjectId, tris: &[Triangle], material: Option<MaterialId>) {
     ctx.begin_object(id).unwrap();
+    if let Some(m) = material {
+        ctx.material(m).unwrap();
+    }
     ctx.begin(PrimitiveKind::Triangles).unwrap();
     for t in tris {
         for &v in t {
