@@ -152,7 +152,14 @@ impl Aabb {
     /// [`Aabb::clip`] for the `lanes` of a packet, lane `l` over
     /// `(t_min, t_max[l])`: each lane's entry and exit, and the lanes whose
     /// ray meets the box (the others hold zeros).
+    ///
+    /// NOTE: lane by lane the operations of [`Aabb::clip`] on
+    /// `rays[l].with_interval(rays[l].t_min, t_max[l])`, in its order, with
+    /// selects for its branches: the same bits (tested against it).
+    // PERF: one straight pass over all lanes instead of a clip per lane
+    // (6.7% of a kitchen primary-ray profile as a loop of clips).
     #[must_use]
+    #[inline]
     pub fn clip_lanes<const N: usize>(
         &self,
         rays: &[Ray; N],
@@ -161,11 +168,46 @@ impl Aabb {
     ) -> ([f32; N], [f32; N], u32) {
         let mut t0 = [0.0f32; N];
         let mut t1 = [0.0f32; N];
+        if lanes == 0 || self.is_empty() {
+            return (t0, t1, 0);
+        }
+        let (lo, hi) = (self.min.to_array(), self.max.to_array());
+        let widen = 1.0 + 2.0 * gamma(3);
         let mut live = 0u32;
-        for l in crate::lanes_of(lanes) {
-            if let Some((a, b)) = self.clip(&rays[l].with_interval(rays[l].t_min, t_max[l])) {
-                (t0[l], t1[l]) = (a, b);
-                live |= 1 << l;
+        for l in 0..N {
+            let r = &rays[l];
+            let (o, d, inv) = (r.origin.to_array(), r.dir.to_array(), r.inv_dir.to_array());
+            // `with_interval` keeps an invalid ray's own interval.
+            let mut near = r.t_min;
+            let mut far = if r.is_valid() { t_max[l] } else { r.t_max };
+            let mut outside = false;
+            for a in 0..3 {
+                let x = (lo[a] - o[a]) * inv[a];
+                let y = (hi[a] - o[a]) * inv[a];
+                let swap = x > y;
+                let n = if swap { y } else { x };
+                let f = (if swap { x } else { y }) * widen;
+                let parallel = d[a] == 0.0;
+                // Bitwise on purpose: no branch in the lane loop.
+                #[allow(clippy::needless_bitwise_bool)]
+                let off = parallel & ((o[a] < lo[a]) | (o[a] > hi[a]));
+                outside |= off;
+                let n = if parallel { f32::NEG_INFINITY } else { n };
+                let f = if parallel { f32::INFINITY } else { f };
+                near = if n > near { n } else { near };
+                far = if f < far { f } else { far };
+            }
+            // `clip`'s `t0 > t1` rejection (a NaN bound does not reject).
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            let hit = !outside && !(near > far);
+            t0[l] = if hit { near } else { 0.0 };
+            t1[l] = if hit { far } else { 0.0 };
+            live |= u32::from(hit) << l;
+        }
+        let live = live & lanes;
+        for l in 0..N {
+            if live & (1 << l) == 0 {
+                (t0[l], t1[l]) = (0.0, 0.0);
             }
         }
         (t0, t1, live)
@@ -265,6 +307,7 @@ mod tests {
             }
         };
         let mut tested = 0;
+        let mut packet = Vec::new();
         for _ in 0..200_000 {
             let v = |rng: &mut SmallRng, p: &mut dyn FnMut(&mut SmallRng) -> f32| Vec3::new(p(rng), p(rng), p(rng));
             let (c1, c2) = (v(&mut rng, &mut pick), v(&mut rng, &mut pick));
@@ -284,6 +327,33 @@ mod tests {
             let bits = |r: Option<(f32, f32)>| r.map(|(a, b)| (a.to_bits(), b.to_bits()));
             assert_eq!(bits(b.clip(&ray)), bits(clip_by_axis(&b, &ray)), "{b:?} {ray:?}");
             tested += usize::from(clip_by_axis(&b, &ray).is_some());
+            // Every 16 rays, the same box against them as a packet, each
+            // lane over its own bound, some lanes masked off.
+            packet.push((
+                ray,
+                if rng.random_bool(0.2) {
+                    rng.random_range(-1.0..4.0)
+                } else {
+                    ray.t_max
+                },
+            ));
+            if packet.len() == 16 {
+                let rays: [Ray; 16] = std::array::from_fn(|l| packet[l].0);
+                let t_max: [f32; 16] = std::array::from_fn(|l| packet[l].1);
+                let lanes = rng.random_range(0..=0xFFFF);
+                let (t0, t1, live) = b.clip_lanes(&rays, lanes, &t_max);
+                for l in 0..16 {
+                    let want = (lanes & (1 << l) != 0)
+                        .then(|| b.clip(&rays[l].with_interval(rays[l].t_min, t_max[l])))
+                        .flatten();
+                    let got = (live & (1 << l) != 0).then_some((t0[l], t1[l]));
+                    assert_eq!(bits(got), bits(want), "lane {l}: {b:?} {:?} to {}", rays[l], t_max[l]);
+                    if want.is_none() {
+                        assert_eq!((t0[l], t1[l]), (0.0, 0.0));
+                    }
+                }
+                packet.clear();
+            }
         }
         assert!(tested > 10_000, "too few hits to mean anything: {tested}");
     }

@@ -5,15 +5,14 @@ use std::time::Instant;
 use crate::fast_build::{FastParams, build_fast};
 use crate::frustum::Frustum;
 use crate::kdnode::{KdNode, MAX_DEPTH, elide_empty_leaves};
-use crate::leaf_blocks::{
-    BlockRay, LANES, PacketBlockRay, TriBlock, for_each_candidate_packet, leaf_any, leaf_closest, pack_leaves,
-};
+use crate::leaf_blocks::{BlockRay, LANES, TriBlock, leaf_any, leaf_closest, leaf_packet, pack_leaves};
 use crate::packet::lanes_of;
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
 use crate::traverse_packet::traverse_packet;
 use crate::triangle::intersect_triangle;
 use crate::triangle::is_valid_triangle;
+use crate::triangle_packet::PacketBlockRay;
 use crate::{Aabb, AccelError, Hit, Ray, Triangle};
 
 /// Largest tree validated automatically after its build in debug-assertion builds.
@@ -363,16 +362,33 @@ impl KdTree {
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                 let f = packet_frustum(frustum, &own, rays, live);
-                for_each_candidate_packet(pbr, f, active, leaf, &self.prim_ids, &self.blocks, |m, prim, tri| {
-                    for l in lanes_of(m) {
-                        if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, closest[l]) {
+                leaf_packet(
+                    pbr,
+                    f,
+                    active,
+                    leaf,
+                    &self.prim_ids,
+                    &self.blocks,
+                    closest,
+                    |h, prim, tri, closest| {
+                        for l in lanes_of(h.hit) {
+                            let (t, b1, b2) = h.lane(l);
                             closest[l] = t;
                             hits[l] = Some(Hit { t, prim, b1, b2 });
-                            found |= 1 << l;
                         }
-                    }
-                    0
-                });
+                        found |= h.hit;
+                        // A ray exactly through an edge or a vertex: the
+                        // scalar kernel's exact recomputation and tie rule.
+                        for l in lanes_of(h.edge) {
+                            if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, closest[l]) {
+                                closest[l] = t;
+                                hits[l] = Some(Hit { t, prim, b1, b2 });
+                                found |= 1 << l;
+                            }
+                        }
+                        0
+                    },
+                );
                 return 0;
             }
             let brs = brs.get_or_insert_with(|| block_rays(rays));
@@ -420,16 +436,17 @@ impl KdTree {
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                     let f = packet_frustum(frustum, &own, rays, live);
-                    return for_each_candidate_packet(
+                    return leaf_packet(
                         pbr,
                         f,
                         active,
                         leaf,
                         &self.prim_ids,
                         &self.blocks,
-                        |m, _, tri| {
-                            let mut hit = 0u32;
-                            for l in lanes_of(m) {
+                        closest,
+                        |h, _, tri, closest| {
+                            let mut hit = h.hit;
+                            for l in lanes_of(h.edge) {
                                 if intersect_triangle(&rays[l], tri, closest[l]).is_some() {
                                     hit |= 1 << l;
                                 }

@@ -21,6 +21,7 @@ use wide::f32x4;
 use crate::frustum::Frustum;
 use crate::kdnode::KdNode;
 use crate::triangle::{TriHit, intersect_triangle};
+use crate::triangle_packet::{LaneHits, PacketBlockRay};
 use crate::{AccelError, Ray, Triangle};
 
 /// Triangles per block (one SSE register per coordinate).
@@ -220,99 +221,26 @@ pub(crate) fn leaf_any(ray: &Ray, br: &BlockRay, leaf: KdNode, ids: &[u32], bloc
     })
 }
 
-/// The pre-test's per-ray constants for a packet whose lanes share the
-/// watertight test's axis permutation, lane by lane: one triangle against
-/// `N` rays per pass (the packet form of [`BlockRay`]).
-pub(crate) struct PacketBlockRay<const N: usize> {
-    ox: [f32; N],
-    oy: [f32; N],
-    oz: [f32; N],
-    sx: [f32; N],
-    sy: [f32; N],
-    kx: usize,
-    ky: usize,
-    kz: usize,
-}
-
-impl<const N: usize> PacketBlockRay<N> {
-    /// The constants of the `lanes` of `rays`, `None` when their axis
-    /// permutations differ (then each lane takes its own [`BlockRay`]).
-    pub(crate) fn new(rays: &[Ray; N], lanes: u32) -> Option<Self> {
-        let first = &rays[lanes.trailing_zeros() as usize];
-        let (kx, ky, kz) = (first.kx, first.ky, first.kz);
-        if crate::lanes_of(lanes).any(|l| (rays[l].kx, rays[l].ky, rays[l].kz) != (kx, ky, kz)) {
-            return None;
-        }
-        let o = |axis: usize| std::array::from_fn(|l| rays[l].origin[axis]);
-        Some(Self {
-            ox: o(kx),
-            oy: o(ky),
-            oz: o(kz),
-            sx: std::array::from_fn(|l| rays[l].shear.x),
-            sy: std::array::from_fn(|l| rays[l].shear.y),
-            kx,
-            ky,
-            kz,
-        })
-    }
-
-    /// Bit `l` set: lane `l`'s edge functions for `tri` do not have mixed
-    /// signs. The same operations, in the same order, as
-    /// [`BlockRay::candidates`] and the scalar kernel, lane by lane.
-    // PERF: forced inline into the leaf loop, with the lane loops written
-    // out, so that they compile to straight vector code (as a call it was
-    // 15% of a GL-like kitchen frame).
-    #[allow(clippy::inline_always)]
-    #[inline(always)]
-    fn candidates(&self, tri: &Triangle) -> u32 {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let [a, b, c] = *tri;
-        let (akx, aky, akz) = (a[kx], a[ky], a[kz]);
-        let (bkx, bky, bkz) = (b[kx], b[ky], b[kz]);
-        let (ckx, cky, ckz) = (c[kx], c[ky], c[kz]);
-        let mut m = 0u32;
-        for l in 0..N {
-            let (ox, oy, oz, sx, sy) = (self.ox[l], self.oy[l], self.oz[l], self.sx[l], self.sy[l]);
-            let za = akz - oz;
-            let zb = bkz - oz;
-            let zc = ckz - oz;
-            let ax = akx - ox - sx * za;
-            let ay = aky - oy - sy * za;
-            let bx = bkx - ox - sx * zb;
-            let by = bky - oy - sy * zb;
-            let cx = ckx - ox - sx * zc;
-            let cy = cky - oy - sy * zc;
-            let u = cx * by - cy * bx;
-            let v = ax * cy - ay * cx;
-            let w = bx * ay - by * ax;
-            // PERF: bitwise on purpose: no branch in the lane loop, which
-            // then compiles to vector compares.
-            #[allow(clippy::needless_bitwise_bool)]
-            let neg = (u < 0.0) | (v < 0.0) | (w < 0.0);
-            #[allow(clippy::needless_bitwise_bool)]
-            let pos = (u > 0.0) | (v > 0.0) | (w > 0.0);
-            m |= u32::from(!(neg & pos)) << l;
-        }
-        m
-    }
-}
-
-/// Calls `visit(lanes, prim, triangle)` for each triangle slot of `leaf`
-/// (padding lanes included, as [`for_each_candidate`] meets them) with the
-/// lanes of `lanes` that pass its pre-test, in leaf order; `visit` returns
-/// the lanes that are done, which take no further part. Returns the lanes
-/// done. Per lane, the triangles reaching `visit` and their order are those
-/// that [`for_each_candidate`] gives that lane's ray alone.
+/// Tests the triangles of `leaf` against the `lanes` of a packet, each lane
+/// over `(t_min, closest[l])`, in leaf order (padding slots included, as
+/// [`for_each_candidate`] meets them), and calls `visit(hits, prim,
+/// triangle, closest)` for each triangle that some lane hits or must decide
+/// with the scalar kernel ([`LaneHits::edge`]); `visit` lowers `closest` for
+/// the hits it keeps and returns the lanes that are done, which take no
+/// further part. Returns the lanes done. Per lane, the hits reaching
+/// `visit` and their order are those of the scalar kernel over
+/// [`for_each_candidate`]'s triangles for that lane's ray alone.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn for_each_candidate_packet<const N: usize>(
+pub(crate) fn leaf_packet<const N: usize>(
     pbr: &PacketBlockRay<N>,
     frustum: Option<&Frustum>,
     lanes: u32,
     leaf: KdNode,
     ids: &[u32],
     blocks: &[TriBlock],
-    mut visit: impl FnMut(u32, u32, &Triangle) -> u32,
+    closest: &mut [f32; N],
+    mut visit: impl FnMut(&LaneHits, u32, &Triangle, &mut [f32; N]) -> u32,
 ) -> u32 {
     let off = leaf.prim_offset() as usize;
     let first = off / LANES;
@@ -329,9 +257,9 @@ pub(crate) fn for_each_candidate_packet<const N: usize>(
                 continue;
             }
             let tri = b.triangle(j);
-            let m = pbr.candidates(&tri) & live;
-            if m != 0 {
-                live &= !visit(m, ids[off + k * LANES + j], &tri);
+            let h = pbr.intersect(&tri, live, closest);
+            if h.hit | h.edge != 0 {
+                live &= !visit(&h, ids[off + k * LANES + j], &tri, closest);
                 if live == 0 {
                     return lanes;
                 }

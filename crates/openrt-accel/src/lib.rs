@@ -50,6 +50,7 @@ mod toplevel;
 mod traverse;
 mod traverse_packet;
 mod triangle;
+mod triangle_packet;
 
 #[cfg(feature = "embree")]
 mod embree_peer;

@@ -376,6 +376,11 @@ impl<T: Tracer> Shader<'_, T> {
         // taken across all lanes; each lane adds its bounces in that order.
         #[allow(clippy::needless_range_loop)]
         for k in 0..2 {
+            // PERF: no packet of bounces to copy when no lane has one (every
+            // GL-like packet, most Whitted ones at their last depth).
+            if lanes_of(lanes).all(|l| bounces[l][k].is_none()) {
+                continue;
+            }
             let mut next = *rays;
             let mut next_cones = *cones;
             let mut mask = 0u32;

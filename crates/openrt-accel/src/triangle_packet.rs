@@ -1,0 +1,386 @@
+//! The watertight ray/triangle test across a packet's lanes: one triangle
+//! against `N` rays per pass, the lane-parallel twin of
+//! [`crate::intersect_triangle`].
+//!
+//! Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1),
+//! 2013, for the test; Wald, Benthin, Wagner & Slusallek 2001 for testing a
+//! packet's rays against one triangle at a time. Lanes that share the test's
+//! axis permutation (nearly every coherent packet) share the triangle's
+//! permuted coordinates; everything else is per lane, in arrays of `N` that
+//! the compiler turns into vector code.
+//!
+//! NOTE: each lane repeats the scalar kernel's operations one for one (same
+//! subtractions and products in the same order, no fused multiply-add, the
+//! same comparisons written so that NaN goes the same way), so a lane's hit,
+//! `t` and barycentrics are bit-identical to [`crate::intersect_triangle`]'s.
+//! The one case it does not decide is an edge function that is exactly zero
+//! (a ray through an edge or a vertex): the scalar kernel recomputes those in
+//! f64 and applies its tie rule, so such lanes are handed back to it
+//! ([`LaneHits::edge`]). Tested against the scalar kernel in this module.
+
+use wide::f32x4;
+
+use crate::numeric::gamma;
+use crate::{MAX_LANES, Ray, Triangle};
+
+/// Lanes per SIMD chunk (one SSE register of `f32`).
+const CHUNK: usize = 4;
+
+/// The lanes of one chunk.
+const CHUNK_MASK: u32 = (1 << CHUNK) - 1;
+
+/// Chunks in the widest packet.
+const MAX_CHUNKS: usize = MAX_LANES / CHUNK;
+
+/// The watertight test's per-ray constants for a packet whose lanes share
+/// its axis permutation, four lanes to a SIMD chunk (the packet form of the
+/// leaf blocks' per-ray constants).
+pub(crate) struct PacketBlockRay<const N: usize> {
+    ox: [f32x4; MAX_CHUNKS],
+    oy: [f32x4; MAX_CHUNKS],
+    oz: [f32x4; MAX_CHUNKS],
+    sx: [f32x4; MAX_CHUNKS],
+    sy: [f32x4; MAX_CHUNKS],
+    sz: [f32x4; MAX_CHUNKS],
+    t_min: [f32x4; MAX_CHUNKS],
+    kx: usize,
+    ky: usize,
+    kz: usize,
+}
+
+/// What [`PacketBlockRay::intersect`] decided for one triangle.
+pub(crate) struct LaneHits {
+    /// Lanes that hit the triangle inside their interval; their `t`, `b1`
+    /// and `b2` hold the hit.
+    pub(crate) hit: u32,
+    /// Lanes with an edge function exactly zero, which only the scalar
+    /// kernel decides (never in `hit`).
+    pub(crate) edge: u32,
+    t: [f32x4; MAX_CHUNKS],
+    b1: [f32x4; MAX_CHUNKS],
+    b2: [f32x4; MAX_CHUNKS],
+}
+
+impl LaneHits {
+    /// Lane `l`'s `(t, b1, b2)`, meaningful for the lanes of `hit`.
+    #[inline]
+    pub(crate) fn lane(&self, l: usize) -> (f32, f32, f32) {
+        let (k, i) = (l / CHUNK, l % CHUNK);
+        (
+            self.t[k].to_array()[i],
+            self.b1[k].to_array()[i],
+            self.b2[k].to_array()[i],
+        )
+    }
+}
+
+/// A triangle's vertices in the lanes' shared permutation, splatted.
+#[derive(Clone, Copy)]
+struct Permuted {
+    a: [f32x4; 3],
+    b: [f32x4; 3],
+    c: [f32x4; 3],
+}
+
+/// One chunk's translated, sheared vertices and edge functions, in the
+/// scalar kernel's order of operations.
+#[derive(Clone, Copy)]
+struct Edges {
+    za: f32x4,
+    zb: f32x4,
+    zc: f32x4,
+    ax: f32x4,
+    ay: f32x4,
+    bx: f32x4,
+    by: f32x4,
+    cx: f32x4,
+    cy: f32x4,
+    u: f32x4,
+    v: f32x4,
+    w: f32x4,
+}
+
+impl<const N: usize> PacketBlockRay<N> {
+    /// The constants of the `lanes` of `rays`, `None` when their axis
+    /// permutations differ (then each lane takes the scalar kernel).
+    pub(crate) fn new(rays: &[Ray; N], lanes: u32) -> Option<Self> {
+        const { assert!(N.is_multiple_of(CHUNK) && N <= MAX_LANES) };
+        let first = &rays[lanes.trailing_zeros() as usize];
+        let (kx, ky, kz) = (first.kx, first.ky, first.kz);
+        if crate::lanes_of(lanes).any(|l| (rays[l].kx, rays[l].ky, rays[l].kz) != (kx, ky, kz)) {
+            return None;
+        }
+        let chunks = |f: &dyn Fn(&Ray) -> f32| -> [f32x4; MAX_CHUNKS] {
+            std::array::from_fn(|k| f32x4::new(std::array::from_fn(|i| rays.get(k * CHUNK + i).map_or(0.0, f))))
+        };
+        Some(Self {
+            ox: chunks(&|r| r.origin[kx]),
+            oy: chunks(&|r| r.origin[ky]),
+            oz: chunks(&|r| r.origin[kz]),
+            sx: chunks(&|r| r.shear.x),
+            sy: chunks(&|r| r.shear.y),
+            sz: chunks(&|r| r.shear.z),
+            t_min: chunks(&|r| r.t_min),
+            kx,
+            ky,
+            kz,
+        })
+    }
+
+    #[inline]
+    fn permute(&self, tri: &Triangle) -> Permuted {
+        let p = |v: glam::Vec3| {
+            [
+                f32x4::splat(v[self.kx]),
+                f32x4::splat(v[self.ky]),
+                f32x4::splat(v[self.kz]),
+            ]
+        };
+        Permuted {
+            a: p(tri[0]),
+            b: p(tri[1]),
+            c: p(tri[2]),
+        }
+    }
+
+    /// Chunk `k`'s edge functions: `intersect_triangle`'s first operations.
+    #[inline]
+    fn edges(&self, t: &Permuted, k: usize) -> Edges {
+        let (ox, oy, oz, sx, sy) = (self.ox[k], self.oy[k], self.oz[k], self.sx[k], self.sy[k]);
+        let za = t.a[2] - oz;
+        let zb = t.b[2] - oz;
+        let zc = t.c[2] - oz;
+        let ax = t.a[0] - ox - sx * za;
+        let ay = t.a[1] - oy - sy * za;
+        let bx = t.b[0] - ox - sx * zb;
+        let by = t.b[1] - oy - sy * zb;
+        let cx = t.c[0] - ox - sx * zc;
+        let cy = t.c[1] - oy - sy * zc;
+        Edges {
+            za,
+            zb,
+            zc,
+            ax,
+            ay,
+            bx,
+            by,
+            cx,
+            cy,
+            u: cx * by - cy * bx,
+            v: ax * cy - ay * cx,
+            w: bx * ay - by * ax,
+        }
+    }
+
+    /// The whole watertight test of `tri` for the `lanes`, lane `l` over
+    /// `(t_min, t_max[l])`: lane by lane the answer of
+    /// `intersect_triangle(&rays[l], tri, t_max[l])`, except for the lanes
+    /// returned in [`LaneHits::edge`], which the caller decides with it.
+    /// Chunks without a lane of `lanes` are not computed.
+    // PERF: forced inline into the leaf loop; a chunk whose lanes all have
+    // edge functions of mixed signs stops after them (the pre-test), and
+    // one pass per chunk replaces a scalar test (with its division) per
+    // lane that passes it.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub(crate) fn intersect(&self, tri: &Triangle, lanes: u32, t_max: &[f32; N]) -> LaneHits {
+        let tr = self.permute(tri);
+        let zero = f32x4::ZERO;
+        let mut out = LaneHits {
+            hit: 0,
+            edge: 0,
+            t: [zero; MAX_CHUNKS],
+            b1: [zero; MAX_CHUNKS],
+            b2: [zero; MAX_CHUNKS],
+        };
+        for k in 0..N / CHUNK {
+            let chunk_lanes = (lanes >> (k * CHUNK)) & CHUNK_MASK;
+            if chunk_lanes == 0 {
+                continue;
+            }
+            let e = self.edges(&tr, k);
+            let (u, v, w) = (e.u, e.v, e.w);
+            let mixed = mixed_signs(&e);
+            // PERF: the pre-test: most chunks stop here (certain misses).
+            if (!mixed).to_bitmask() & chunk_lanes == 0 {
+                continue;
+            }
+            let on_edge = u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero);
+            let det = u + v + w;
+            // `1.0f32.copysign(det)`.
+            let sgn = f32x4::ONE | (det & f32x4::splat(-0.0));
+            let outside = (u * sgn).simd_lt(zero) | (v * sgn).simd_lt(zero) | (w * sgn).simd_lt(zero);
+            let sz = self.sz[k];
+            let (az, bz, cz) = (sz * e.za, sz * e.zb, sz * e.zc);
+            let t_scaled = u * az + v * bz + w * cz;
+            let abs_det = det.abs();
+            let ts = t_scaled * sgn;
+            let hi = f32x4::new(std::array::from_fn(|i| t_max[k * CHUNK + i]));
+            let within = ts.simd_gt(self.t_min[k] * abs_det) & ts.simd_lt(hi * abs_det);
+            let rcp_det = f32x4::ONE / det;
+            let t = t_scaled * rcp_det;
+            let max3 = |p: f32x4, q: f32x4, r: f32x4| p.abs().max(q.abs()).max(r.abs());
+            let max_zt = max3(az, bz, cz);
+            let max_zu = max3(e.za, e.zb, e.zc);
+            let delta_z = f32x4::splat(gamma(3)) * max_zt;
+            let max_xt = max3(e.ax, e.bx, e.cx);
+            let max_yt = max3(e.ay, e.by, e.cy);
+            let delta_x = f32x4::splat(gamma(5)) * (max_xt + max_zu);
+            let delta_y = f32x4::splat(gamma(5)) * (max_yt + max_zu);
+            let delta_e =
+                f32x4::splat(2.0) * (f32x4::splat(gamma(2)) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+            let max_e = max3(u, v, w);
+            let delta_t = f32x4::splat(3.0)
+                * (f32x4::splat(gamma(3)) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
+                * rcp_det.abs();
+            // The scalar kernel's rejections, in its terms: mixed signs,
+            // `det` zero or NaN, outside, beyond the interval, `t` within
+            // its error of zero or not finite (`!(t <= delta_t)`: a NaN
+            // `delta_t` rejects nothing, as there).
+            let rejected = mixed
+                | on_edge
+                | det.simd_eq(zero)
+                | det.is_nan()
+                | outside
+                | !within
+                | t.simd_le(delta_t)
+                | !t.is_finite();
+            out.hit |= (!rejected).to_bitmask() << (k * CHUNK);
+            out.edge |= (on_edge & !mixed).to_bitmask() << (k * CHUNK);
+            out.t[k] = t;
+            out.b1[k] = v * rcp_det;
+            out.b2[k] = w * rcp_det;
+        }
+        out.hit &= lanes;
+        out.edge &= lanes;
+        out
+    }
+}
+
+/// Lanes whose edge functions have mixed signs: certain misses.
+#[inline]
+fn mixed_signs(e: &Edges) -> f32x4 {
+    let zero = f32x4::ZERO;
+    let neg = e.u.simd_lt(zero) | e.v.simd_lt(zero) | e.w.simd_lt(zero);
+    let pos = e.u.simd_gt(zero) | e.v.simd_gt(zero) | e.w.simd_gt(zero);
+    neg & pos
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+    use crate::intersect_triangle;
+
+    const N: usize = 16;
+
+    /// Checks every lane of `rays` against `tri` with the scalar kernel.
+    fn check(rays: &[Ray; N], tri: &Triangle, t_max: &[f32; N]) -> (u32, u32) {
+        let p = PacketBlockRay::new(rays, u32::MAX >> (32 - N)).expect("one permutation");
+        let all = u32::MAX >> (32 - N);
+        let h = p.intersect(tri, all, t_max);
+        assert_eq!(h.hit & h.edge, 0);
+        // A part of the lanes (whole chunks skipped, others partly
+        // masked) answers for those lanes alone, the same way.
+        for part in [0x00F0, 0x0F0F & !0x0102, 0x8001] {
+            let q = p.intersect(tri, part, t_max);
+            assert_eq!((q.hit, q.edge), (h.hit & part, h.edge & part), "lanes {part:#x}");
+        }
+        for l in 0..N {
+            let want = intersect_triangle(&rays[l], tri, t_max[l]);
+            if h.edge & (1 << l) != 0 {
+                continue;
+            }
+            let got = (h.hit & (1 << l) != 0).then(|| h.lane(l));
+            let bits = |x: Option<(f32, f32, f32)>| x.map(|(a, b, c)| (a.to_bits(), b.to_bits(), c.to_bits()));
+            assert_eq!(bits(got), bits(want), "lane {l}: {:?} against {tri:?}", rays[l]);
+        }
+        (h.hit, h.edge)
+    }
+
+    #[test]
+    fn lanes_match_the_scalar_kernel_bit_for_bit_on_a_seeded_sweep() {
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(0x7A11);
+        let (mut hits, mut edges) = (0u32, 0u32);
+        for _ in 0..3000 {
+            let v = |rng: &mut rand::rngs::SmallRng| {
+                Vec3::new(
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-1.0..1.0),
+                )
+            };
+            let tri = [v(&mut rng), v(&mut rng), v(&mut rng)];
+            // A packet from one origin (primary rays) into a cone around -z,
+            // with some lanes aimed exactly at vertices and edge midpoints.
+            let o = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 4.0);
+            let rays: [Ray; N] = std::array::from_fn(|l| {
+                let target = match l % 8 {
+                    0 => tri[l / 8 % 3],
+                    1 => (tri[0] + tri[1]) * 0.5,
+                    _ => Vec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), 0.0),
+                };
+                let t_min = if l == 5 { 3.9 } else { 0.0 };
+                Ray::new(o, target - o, t_min, f32::INFINITY)
+            });
+            if rays
+                .iter()
+                .any(|r| (r.kx, r.ky, r.kz) != (rays[0].kx, rays[0].ky, rays[0].kz))
+            {
+                continue;
+            }
+            let t_max: [f32; N] = std::array::from_fn(|l| if l % 3 == 0 { 1.0 } else { f32::INFINITY });
+            let (h, e) = check(&rays, &tri, &t_max);
+            hits += h.count_ones();
+            edges += e.count_ones();
+        }
+        assert!(hits > 2_000, "the sweep hits: {hits}");
+        assert!(edges > 0, "the sweep meets exact edges: {edges}");
+    }
+
+    #[test]
+    fn hard_lanes_match_the_scalar_kernel() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let degenerate = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
+        let far = [
+            Vec3::splat(1e30),
+            Vec3::new(-1e30, 1e30, 1e30),
+            Vec3::new(1e30, -1e30, 1e30),
+        ];
+        let rays: [Ray; N] = std::array::from_fn(|l| {
+            let d = Vec3::new(0.01 * l as f32, 0.02, -1.0);
+            match l {
+                // Through a vertex, along an edge, behind the origin.
+                0 => Ray::infinite(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z),
+                1 => Ray::infinite(Vec3::new(0.5, 0.0, 1.0), -Vec3::Z),
+                2 => Ray::infinite(Vec3::new(0.2, 0.2, -1.0), -Vec3::Z),
+                // NaN origin, empty interval, a hit at the interval's end.
+                3 => Ray::new(Vec3::new(f32::NAN, 0.2, 1.0), -Vec3::Z, 0.0, f32::INFINITY),
+                4 => Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 2.0, 1.0),
+                5 => Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 0.0, 1.0),
+                // Origin on the plane.
+                6 => Ray::infinite(Vec3::new(0.2, 0.2, 0.0), -Vec3::Z),
+                // The same below a negative t_min: `t` is exactly its error
+                // bound, zero, and the conservative test rejects it.
+                8 => Ray::new(Vec3::new(0.2, 0.2, 0.0), -Vec3::Z, -1.0, 1.0),
+                _ => Ray::infinite(Vec3::new(0.1, 0.1, 1.0), d),
+            }
+        });
+        let t_max: [f32; N] = std::array::from_fn(|l| if l == 5 { 1.0 } else { rays[l].t_max });
+        for t in [tri, degenerate, far, [tri[0], tri[2], tri[1]]] {
+            check(&rays, &t, &t_max);
+        }
+    }
+
+    #[test]
+    fn mixed_permutations_are_refused() {
+        let rays: [Ray; N] = std::array::from_fn(|l| {
+            let d = if l == 3 { Vec3::X } else { -Vec3::Z };
+            Ray::infinite(Vec3::ZERO, d)
+        });
+        assert!(PacketBlockRay::new(&rays, u32::MAX >> (32 - N)).is_none());
+        assert!(PacketBlockRay::new(&rays, 0b0111).is_some());
+    }
+}

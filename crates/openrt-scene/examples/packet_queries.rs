@@ -1,0 +1,55 @@
+//! Primary-ray queries alone, in a loop, for profiling (`perf record`):
+//! the middle frame of a scene at 640x480, its camera rays in the
+//! renderer's 16-lane pixel blocks, through `Scene::intersect_packet` (or
+//! `Scene::intersect` one by one with `single`), no shading. Prints the
+//! best pass.
+//!
+//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [single]`
+use openrt_accel::Ray;
+use openrt_scene::ScenePlayer;
+use std::time::Instant;
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let path = std::path::PathBuf::from(&args[1]);
+    let secs: f64 = args.get(2).map_or(5.0, |s| s.parse().unwrap());
+    let single = args.get(3).is_some_and(|s| s == "single");
+    let mut player = ScenePlayer::open(Some(&path)).unwrap();
+    let t = player.time_of(player.frames() / 2);
+    player.set_time(player.time_of(0)).unwrap();
+    player.set_time(t).unwrap();
+    let scene = player.ctx().scene();
+    let (w, h) = (640u32, 480u32);
+    let cam = player.camera(t).rays(w, h).unwrap();
+    let (bw, bh) = openrt_core::packet_block(16);
+    let mut primary = Vec::new();
+    for by in (0..h).step_by(bh as usize) {
+        for bx in (0..w).step_by(bw as usize) {
+            for l in 0..16u32 {
+                let (x, y) = (bx + l % bw, by + l / bw);
+                primary.push(cam.ray(x.min(w - 1), y.min(h - 1)));
+            }
+        }
+    }
+    let start = Instant::now();
+    let mut passes = 0;
+    let mut hits = 0usize;
+    let mut best = f64::MAX;
+    while start.elapsed().as_secs_f64() < secs {
+        let s = Instant::now();
+        if single {
+            hits += primary.iter().filter(|r| scene.intersect(r).is_some()).count();
+        } else {
+            for c in primary.chunks_exact(16) {
+                let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
+                hits += scene.intersect_packet(&pk, 0xFFFF).iter().flatten().count();
+            }
+        }
+        best = best.min(s.elapsed().as_secs_f64());
+        passes += 1;
+    }
+    println!(
+        "passes {passes} hits {hits} best {:.2} ms  {:.2} Mrays/s",
+        best * 1e3,
+        primary.len() as f64 / best / 1e6
+    );
+}
