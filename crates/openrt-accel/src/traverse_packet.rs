@@ -186,17 +186,21 @@ where
             let go_far = if far_empty { 0 } else { active & !beyond };
             // Each lane's far interval starts at its widened split distance
             // (the scalar walk's `lo`), whether the far cell waits or is next.
-            let far_min: [f32; N] = std::array::from_fn(|l| {
-                let lo = widen_down(t_split[l]);
-                if lo > t_min[l] { lo } else { t_min[l] }
-            });
+            // PERF: computed only when the far cell is visited (most steps
+            // send the whole packet to one child).
+            let far_min = |t_min: &[f32; N]| -> [f32; N] {
+                std::array::from_fn(|l| {
+                    let lo = widen_down(t_split[l]);
+                    if lo > t_min[l] { lo } else { t_min[l] }
+                })
+            };
             if go_near != 0 {
                 if go_far != 0 {
                     stack[sp].write(Entry {
                         node: far,
                         mask: go_far,
                         unchecked: go_far & !go_near,
-                        t_min: far_min,
+                        t_min: far_min(&t_min),
                         t_max,
                     });
                     sp += 1;
@@ -210,7 +214,7 @@ where
                 continue 'walk;
             }
             if go_far != 0 {
-                t_min = far_min;
+                t_min = far_min(&t_min);
                 active = go_far;
                 node = far;
                 continue 'walk;

@@ -344,11 +344,19 @@ impl Scene {
         let tri = inst.geometry.tree.triangles().get(p).ok_or_else(foreign)?;
         let sh = &inst.geometry.shading;
         let b0 = 1.0 - hit.b1 - hit.b2;
+        // PERF: an instance without a transform skips the matrix products
+        // (the same values; at most the sign of a zero differs, which no
+        // later step looks at).
+        let to_world_normal = |n: Vec3| if inst.identity { n } else { inst.normal_matrix * n };
         let ng_obj = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-        let geometric_normal = (inst.normal_matrix * ng_obj * inst.det_sign).normalize_or_zero();
+        let geometric_normal = if inst.identity {
+            ng_obj.normalize_or_zero()
+        } else {
+            (inst.normal_matrix * ng_obj * inst.det_sign).normalize_or_zero()
+        };
         let shading_normal = if sh.has_normals[p] {
             let n = sh.normals[p];
-            let ns = (inst.normal_matrix * (n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2)).normalize_or_zero();
+            let ns = to_world_normal(n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero();
             if ns == Vec3::ZERO { geometric_normal } else { ns }
         } else {
             geometric_normal
@@ -357,7 +365,11 @@ impl Scene {
         // NOTE: the hit point is interpolated from the world-space vertices
         // (Wächter & Binder, Ray Tracing Gems ch. 6): its error is a few ulps
         // of its magnitude, unlike origin + t * dir.
-        let w = tri.map(|v| inst.to_world.transform_point3(v));
+        let w = if inst.identity {
+            *tri
+        } else {
+            tri.map(|v| inst.to_world.transform_point3(v))
+        };
         let point = w[0] * b0 + w[1] * hit.b1 + w[2] * hit.b2;
         let point = if point.is_finite() { point } else { ray.at(hit.t) };
         let error_scale = w.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);

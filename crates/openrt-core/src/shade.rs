@@ -137,7 +137,8 @@ pub(crate) struct Prepared {
     nf: Vec3,
     /// Shading normal on the side of `nf`.
     ns: Vec3,
-    /// Origin of rays leaving on the incoming side (shadow and mirror rays).
+    /// Origin of rays leaving on the incoming side (shadow and mirror rays;
+    /// the hit point itself in GL-like mode, which traces none).
     p_out: Vec3,
     /// The ray cone at the hit: its footprint, and the cone of the bounces.
     cone: Cone,
@@ -215,7 +216,12 @@ impl<T: Tracer> Shader<'_, T> {
         if ns.dot(nf) < 0.0 {
             ns = -ns;
         }
-        let p_out = offset_ray_origin(surf.point, nf, surf.error_scale);
+        // PERF: only Whitted mode traces rays from the hit.
+        let p_out = if self.mode == RenderMode::Whitted {
+            offset_ray_origin(surf.point, nf, surf.error_scale)
+        } else {
+            surf.point
+        };
         Some(Prepared {
             surf,
             d,
