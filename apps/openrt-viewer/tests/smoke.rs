@@ -30,6 +30,11 @@ fn available() -> Option<PathBuf> {
     None
 }
 
+/// `xvfb-run -a` picks a free display number racily: runs started at the
+/// same moment can pick the same one, and one of them fails to start (seen
+/// once in a full test run). The tests of this file take turns.
+static XVFB: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// `xvfb-run` is here; without it the test fails when `CI` is set and is
 /// skipped with a printed reason otherwise.
 fn have_xvfb() -> bool {
@@ -48,6 +53,7 @@ fn have_xvfb() -> bool {
 #[cfg_attr(not(bart_data), ignore = "BART data not found: set OPENRT_BART_DIR")]
 fn the_viewer_renders_the_kitchen_in_a_real_window() {
     let Some(bart) = available() else { return };
+    let _turn = XVFB.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let out = std::env::temp_dir().join(format!("openrt-viewer-smoke-{}.png", std::process::id()));
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/kitchen.ron");
     let status = Command::new("timeout")
@@ -103,6 +109,7 @@ fn a_broken_scene_ends_a_screenshot_run_with_its_error() {
     if !have_xvfb() {
         return;
     }
+    let _turn = XVFB.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("broken.aff");
     std::fs::write(&scene, "v\nfrom 0 0 5\nat 0 0 0\nresolution 16384 16384\n").unwrap();
@@ -143,6 +150,7 @@ fn a_still_view_accumulates_one_sample_per_frame() {
     if !have_xvfb() {
         return;
     }
+    let _turn = XVFB.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let dir = tempfile::tempdir().unwrap();
     let shot = dir.path().join("still.png");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/textured.ron");

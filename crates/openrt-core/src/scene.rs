@@ -8,7 +8,8 @@ use openrt_accel::{InstanceBsp, Ray, Triangle, lanes_of, traverse, traverse_pack
 use crate::instance::InstanceRecord;
 use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, Texture};
 
-/// Entries of the per-ray mailbox (direct-mapped on the instance index).
+/// Entries of the mailboxes (one per ray, or one per packet with a lane mask
+/// per entry), direct-mapped on the instance index.
 const MAILBOX: usize = 32;
 
 /// The closest hit in a scene.
@@ -185,8 +186,8 @@ impl Scene {
     /// Two-level packet traversal (Wald, Benthin & Slusallek 2003, with the
     /// packets of Wald et al. 2001): the packet walks the top-level BSP; in a
     /// leaf, the lanes that have not yet tested an instance (a mailbox per
-    /// lane) are moved into its object space once and walk its kd-tree as a
-    /// packet, each up to its own closest hit.
+    /// packet, with the lanes per entry) are moved into its object space
+    /// once and walk its kd-tree as a packet, each up to its own closest hit.
     #[must_use]
     pub fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N] {
         let mut best = [None; N];
@@ -194,15 +195,23 @@ impl Scene {
         let mut hits = [None; N];
         let frustum = openrt_accel::Frustum::new(rays, lanes);
         self.walk_packet(rays, lanes, frustum.as_ref(), |i, inst, active, closest| {
-            for l in lanes_of(active) {
-                local[l] = inst.ray_to_object(&rays[l], closest[l]);
-            }
             // An instance without a transform sees the world frustum as it is.
             let f = frustum.as_ref().filter(|_| inst.identity);
-            let found = inst
-                .geometry
-                .tree
-                .intersect_packet_in(&local, active, closest, &mut hits, f);
+            let found = if f.is_some() {
+                // PERF: and the world rays: the tree's packet queries read
+                // each lane's bound from `closest`, not from the ray (see
+                // `with_interval`), so no copy is needed.
+                inst.geometry
+                    .tree
+                    .intersect_packet_in(rays, active, closest, &mut hits, f)
+            } else {
+                for l in lanes_of(active) {
+                    local[l] = inst.ray_to_object(&rays[l], closest[l]);
+                }
+                inst.geometry
+                    .tree
+                    .intersect_packet_in(&local, active, closest, &mut hits, f)
+            };
             for l in lanes_of(found) {
                 if let Some(h) = hits[l] {
                     best[l] = Some(SceneHit {
@@ -246,12 +255,16 @@ impl Scene {
     ) -> u32 {
         let mut local = *rays;
         self.walk_packet(rays, lanes, frustum, |_, inst, active, closest| {
+            if inst.identity {
+                // PERF: the world rays as they are: an any-hit walk never
+                // lowers a lane's bound, so `ray_to_object` would only copy
+                // them.
+                return inst.geometry.tree.occluded_packet_in(rays, active, frustum);
+            }
             for l in lanes_of(active) {
                 local[l] = inst.ray_to_object(&rays[l], closest[l]);
             }
-            inst.geometry
-                .tree
-                .occluded_packet_in(&local, active, frustum.filter(|_| inst.identity))
+            inst.geometry.tree.occluded_packet_in(&local, active, None)
         })
     }
 
@@ -259,7 +272,8 @@ impl Scene {
     /// lane clipped to the scene box, the top-level BSP walked by the packet
     /// ([`traverse_packet`]), and `test(index, instance, lanes, closest)`
     /// called with the lanes meeting that instance for the first time
-    /// (a mailbox per lane, as [`Scene::walk`] keeps per ray). `test`
+    /// (a mailbox per packet holding the lanes that met each instance, as
+    /// [`Scene::walk`] keeps one per ray). `test`
     /// returns the lanes it finished; the walk returns all finished lanes.
     #[inline]
     fn walk_packet<const N: usize, F>(
@@ -277,7 +291,11 @@ impl Scene {
         if live == 0 {
             return 0;
         }
-        let mut mailbox = [[u32::MAX; MAILBOX]; N];
+        // One mailbox for the packet: per slot an instance and the lanes
+        // that have met it. Like the per-ray mailbox it only saves work: a
+        // lane that meets an instance again (after its slot was taken)
+        // finds the same hits, none of them closer.
+        let mut mailbox = [(u32::MAX, 0u32); MAILBOX];
         // The lanes that can reach an instance's world box, tested for the
         // whole packet before any lane is moved to object space.
         let boxes = openrt_accel::PacketBoxes::new(rays, live);
@@ -297,14 +315,10 @@ impl Scene {
                     if frustum.is_some_and(|f| f.rejects_box(&inst.world_bounds)) {
                         continue;
                     }
-                    let mut fresh = 0u32;
-                    for l in lanes_of(active & !done) {
-                        let slot = &mut mailbox[l][i as usize % MAILBOX];
-                        if *slot != i {
-                            *slot = i;
-                            fresh |= 1 << l;
-                        }
-                    }
+                    let slot = &mut mailbox[i as usize % MAILBOX];
+                    let met = if slot.0 == i { slot.1 } else { 0 };
+                    let fresh = active & !done & !met;
+                    *slot = (i, met | fresh);
                     // NOTE: a lane that misses the world box misses the
                     // instance anywhere: it stays in the mailbox.
                     let fresh = if fresh == 0 {
