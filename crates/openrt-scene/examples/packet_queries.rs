@@ -1,18 +1,22 @@
-//! Primary-ray queries alone, in a loop, for profiling (`perf record`):
-//! the middle frame of a scene at 640x480, its camera rays in the
-//! renderer's 16-lane pixel blocks, through `Scene::intersect_packet` (or
-//! `Scene::intersect` one by one with `single`), no shading. Prints the
-//! best pass.
+//! Ray queries alone, in a loop, for profiling (`perf record`): the
+//! middle frame of a scene at 640x480, its camera rays in the renderer's
+//! 16-lane pixel blocks (closest hit), or the shadow rays from their hits
+//! towards each light (`shadow`: any hit, a packet per block and light),
+//! through the packet queries or one by one (`single`); no shading. The
+//! rays are those of `openrt bench`'s query table. Prints the best pass.
 //!
-//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [single]`
+//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single]`
+use glam::Vec3;
 use openrt_accel::Ray;
+use openrt_core::offset_ray_origin;
 use openrt_scene::ScenePlayer;
 use std::time::Instant;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let path = std::path::PathBuf::from(&args[1]);
     let secs: f64 = args.get(2).map_or(5.0, |s| s.parse().unwrap());
-    let single = args.get(3).is_some_and(|s| s == "single");
+    let single = args.iter().any(|s| s == "single");
+    let shadow = args.iter().any(|s| s == "shadow");
     let mut player = ScenePlayer::open(Some(&path)).unwrap();
     let t = player.time_of(player.frames() / 2);
     player.set_time(player.time_of(0)).unwrap();
@@ -30,18 +34,52 @@ fn main() {
             }
         }
     }
+    let lights: Vec<Vec3> = player.env().lights.iter().map(|l| l.position).collect();
+    let mut shadows = Vec::new();
+    for block in primary.chunks(16) {
+        for &light in &lights {
+            for r in block {
+                let out = scene
+                    .intersect(r)
+                    .and_then(|h| scene.surface(r, &h).ok())
+                    .map_or(r.origin, |s| {
+                        let n = if s.geometric_normal.dot(r.dir) > 0.0 {
+                            -s.geometric_normal
+                        } else {
+                            s.geometric_normal
+                        };
+                        offset_ray_origin(s.point, n, s.error_scale)
+                    });
+                shadows.push((Ray::new(out, light - out, 0.0, 1.0 - 1e-4), light));
+            }
+        }
+    }
+    let rays: Vec<Ray> = if shadow {
+        shadows.iter().map(|s| s.0).collect()
+    } else {
+        primary
+    };
     let start = Instant::now();
     let mut passes = 0;
     let mut hits = 0usize;
     let mut best = f64::MAX;
     while start.elapsed().as_secs_f64() < secs {
         let s = Instant::now();
-        if single {
-            hits += primary.iter().filter(|r| scene.intersect(r).is_some()).count();
-        } else {
-            for c in primary.chunks_exact(16) {
-                let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
-                hits += scene.intersect_packet(&pk, 0xFFFF).iter().flatten().count();
+        match (single, shadow) {
+            (true, false) => hits += rays.iter().filter(|r| scene.intersect(r).is_some()).count(),
+            (true, true) => hits += rays.iter().filter(|r| scene.occluded(r)).count(),
+            (false, false) => {
+                for c in rays.chunks_exact(16) {
+                    let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
+                    hits += scene.intersect_packet(&pk, 0xFFFF).iter().flatten().count();
+                }
+            }
+            (false, true) => {
+                for (k, c) in rays.chunks_exact(16).enumerate() {
+                    let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
+                    let light = shadows[k * 16].1;
+                    hits += scene.occluded_packet_toward(&pk, 0xFFFF, light).count_ones() as usize;
+                }
             }
         }
         best = best.min(s.elapsed().as_secs_f64());
@@ -50,6 +88,6 @@ fn main() {
     println!(
         "passes {passes} hits {hits} best {:.2} ms  {:.2} Mrays/s",
         best * 1e3,
-        primary.len() as f64 / best / 1e6
+        rays.len() as f64 / best / 1e6
     );
 }
