@@ -10,7 +10,6 @@ use crate::packet::lanes_of;
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
 use crate::traverse_packet::traverse_packet;
-use crate::triangle::intersect_triangle;
 use crate::triangle::is_valid_triangle;
 use crate::triangle_packet::PacketBlockRay;
 use crate::{Aabb, AccelError, Hit, Ray, Triangle};
@@ -364,28 +363,20 @@ impl KdTree {
                 let f = packet_frustum(frustum, &own, rays, live);
                 leaf_packet(
                     pbr,
+                    rays,
                     f,
                     active,
                     leaf,
                     &self.prim_ids,
                     &self.blocks,
                     closest,
-                    |h, prim, tri, closest| {
+                    |h, prim, closest| {
                         for l in lanes_of(h.hit) {
                             let (t, b1, b2) = h.lane(l);
                             closest[l] = t;
                             hits[l] = Some(Hit { t, prim, b1, b2 });
                         }
                         found |= h.hit;
-                        // A ray exactly through an edge or a vertex: the
-                        // scalar kernel's exact recomputation and tie rule.
-                        for l in lanes_of(h.edge) {
-                            if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, closest[l]) {
-                                closest[l] = t;
-                                hits[l] = Some(Hit { t, prim, b1, b2 });
-                                found |= 1 << l;
-                            }
-                        }
                         0
                     },
                 );
@@ -438,21 +429,14 @@ impl KdTree {
                     let f = packet_frustum(frustum, &own, rays, live);
                     return leaf_packet(
                         pbr,
+                        rays,
                         f,
                         active,
                         leaf,
                         &self.prim_ids,
                         &self.blocks,
                         closest,
-                        |h, _, tri, closest| {
-                            let mut hit = h.hit;
-                            for l in lanes_of(h.edge) {
-                                if intersect_triangle(&rays[l], tri, closest[l]).is_some() {
-                                    hit |= 1 << l;
-                                }
-                            }
-                            hit
-                        },
+                        |h, _, _| h.hit,
                     );
                 }
                 let brs = brs.get_or_insert_with(|| block_rays(rays));

@@ -221,26 +221,26 @@ pub(crate) fn leaf_any(ray: &Ray, br: &BlockRay, leaf: KdNode, ids: &[u32], bloc
     })
 }
 
-/// Tests the triangles of `leaf` against the `lanes` of a packet, each lane
+/// Tests the triangles of `leaf` against the `lanes` of `rays`, each lane
 /// over `(t_min, closest[l])`, in leaf order (padding slots included, as
 /// [`for_each_candidate`] meets them), and calls `visit(hits, prim,
-/// triangle, closest)` for each triangle that some lane hits or must decide
-/// with the scalar kernel ([`LaneHits::edge`]); `visit` lowers `closest` for
-/// the hits it keeps and returns the lanes that are done, which take no
-/// further part. Returns the lanes done. Per lane, the hits reaching
-/// `visit` and their order are those of the scalar kernel over
+/// closest)` for each triangle that some lane hits; `visit` lowers
+/// `closest` for the hits it keeps and returns the lanes that are done,
+/// which take no further part. Returns the lanes done. Per lane, the hits
+/// reaching `visit` and their order are those of the scalar kernel over
 /// [`for_each_candidate`]'s triangles for that lane's ray alone.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn leaf_packet<const N: usize>(
     pbr: &PacketBlockRay<N>,
+    rays: &[Ray; N],
     frustum: Option<&Frustum>,
     lanes: u32,
     leaf: KdNode,
     ids: &[u32],
     blocks: &[TriBlock],
     closest: &mut [f32; N],
-    mut visit: impl FnMut(&LaneHits, u32, &Triangle, &mut [f32; N]) -> u32,
+    mut visit: impl FnMut(&LaneHits, u32, &mut [f32; N]) -> u32,
 ) -> u32 {
     let off = leaf.prim_offset() as usize;
     let first = off / LANES;
@@ -257,9 +257,12 @@ pub(crate) fn leaf_packet<const N: usize>(
                 continue;
             }
             let tri = b.triangle(j);
-            let h = pbr.intersect(&tri, live, closest);
-            if h.hit | h.edge != 0 {
-                live &= !visit(&h, ids[off + k * LANES + j], &tri, closest);
+            let mut h = pbr.intersect(&tri, live, closest);
+            if h.edge != 0 {
+                h.settle_edges(rays, &tri, closest);
+            }
+            if h.hit != 0 {
+                live &= !visit(&h, ids[off + k * LANES + j], closest);
                 if live == 0 {
                     return lanes;
                 }

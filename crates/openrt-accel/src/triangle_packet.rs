@@ -21,6 +21,7 @@
 use wide::f32x4;
 
 use crate::numeric::gamma;
+use crate::triangle::intersect_triangle;
 use crate::{MAX_LANES, Ray, Triangle};
 
 /// Lanes per SIMD chunk (one SSE register of `f32`).
@@ -71,6 +72,28 @@ impl LaneHits {
             self.b1[k].to_array()[i],
             self.b2[k].to_array()[i],
         )
+    }
+
+    /// Decides the [`LaneHits::edge`] lanes with the scalar kernel (a ray
+    /// exactly through an edge or a vertex: its exact recomputation and tie
+    /// rule), adding their hits to `hit`; `edge` is then empty.
+    #[inline]
+    pub(crate) fn settle_edges<const N: usize>(&mut self, rays: &[Ray; N], tri: &Triangle, t_max: &[f32; N]) {
+        for l in crate::lanes_of(self.edge) {
+            if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, t_max[l]) {
+                let (k, i) = (l / CHUNK, l % CHUNK);
+                let set = |v: &mut f32x4, x: f32| {
+                    let mut a = v.to_array();
+                    a[i] = x;
+                    *v = f32x4::new(a);
+                };
+                set(&mut self.t[k], t);
+                set(&mut self.b1[k], b1);
+                set(&mut self.b2[k], b2);
+                self.hit |= 1 << l;
+            }
+        }
+        self.edge = 0;
     }
 }
 
@@ -275,9 +298,12 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     use super::*;
-    use crate::intersect_triangle;
 
     const N: usize = 16;
+
+    fn bits(x: Option<(f32, f32, f32)>) -> Option<(u32, u32, u32)> {
+        x.map(|(a, b, c)| (a.to_bits(), b.to_bits(), c.to_bits()))
+    }
 
     /// Checks every lane of `rays` against `tri` with the scalar kernel.
     fn check(rays: &[Ray; N], tri: &Triangle, t_max: &[f32; N]) -> (u32, u32) {
@@ -297,8 +323,16 @@ mod tests {
                 continue;
             }
             let got = (h.hit & (1 << l) != 0).then(|| h.lane(l));
-            let bits = |x: Option<(f32, f32, f32)>| x.map(|(a, b, c)| (a.to_bits(), b.to_bits(), c.to_bits()));
             assert_eq!(bits(got), bits(want), "lane {l}: {:?} against {tri:?}", rays[l]);
+        }
+        // With the edge lanes settled by the scalar kernel, every lane.
+        let mut settled = p.intersect(tri, all, t_max);
+        settled.settle_edges(rays, tri, t_max);
+        assert_eq!(settled.edge, 0);
+        for l in 0..N {
+            let want = intersect_triangle(&rays[l], tri, t_max[l]);
+            let got = (settled.hit & (1 << l) != 0).then(|| settled.lane(l));
+            assert_eq!(bits(got), bits(want), "settled lane {l}: {:?} against {tri:?}", rays[l]);
         }
         (h.hit, h.edge)
     }
