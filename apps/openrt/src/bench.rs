@@ -9,7 +9,9 @@ use glam::Vec3;
 use openrt_accel::oracle::BruteForce;
 use openrt_accel::{BuilderKind, Hit};
 use openrt_accel::{PacketWidth, Ray};
-use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool, offset_ray_origin};
+use openrt_core::{
+    Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool, first_hit_shadow_ray,
+};
 use openrt_scene::ScenePlayer;
 
 /// Options of a benchmark run.
@@ -257,18 +259,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<(usize, Vec<KindRow>), Stri
     for block in primary.chunks(lanes) {
         for light in &env.lights {
             for r in block {
-                let out = scene
-                    .intersect(r)
-                    .and_then(|h| scene.surface(r, &h).ok())
-                    .map_or(r.origin, |s| {
-                        let n = if s.geometric_normal.dot(r.dir) > 0.0 {
-                            -s.geometric_normal
-                        } else {
-                            s.geometric_normal
-                        };
-                        offset_ray_origin(s.point, n, s.error_scale)
-                    });
-                shadow.push(Ray::new(out, light.position - out, 0.0, 1.0 - 1e-4));
+                shadow.push(first_hit_shadow_ray(&scene, r, light.position));
             }
         }
     }

@@ -11,7 +11,7 @@ use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
 use crate::traverse_packet::traverse_packet;
 use crate::triangle::is_valid_triangle;
-use crate::triangle_packet::PacketBlockRay;
+use crate::triangle_packet::{LaneHits, PacketBlockRay};
 use crate::{Aabb, AccelError, Hit, Ray, Triangle};
 
 /// Largest tree validated automatically after its build in debug-assertion builds.
@@ -361,25 +361,15 @@ impl KdTree {
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                 let f = packet_frustum(frustum, &own, rays, live);
-                leaf_packet(
-                    pbr,
-                    rays,
-                    f,
-                    active,
-                    leaf,
-                    &self.prim_ids,
-                    &self.blocks,
-                    closest,
-                    |h, prim, closest| {
-                        for l in lanes_of(h.hit) {
-                            let (t, b1, b2) = h.lane(l);
-                            closest[l] = t;
-                            hits[l] = Some(Hit { t, prim, b1, b2 });
-                        }
-                        found |= h.hit;
-                        0
-                    },
-                );
+                self.leaf_packet(pbr, rays, f, active, leaf, closest, |h, prim, closest| {
+                    for l in lanes_of(h.hit) {
+                        let (t, b1, b2) = h.lane(l);
+                        closest[l] = t;
+                        hits[l] = Some(Hit { t, prim, b1, b2 });
+                    }
+                    found |= h.hit;
+                    0
+                });
                 return 0;
             }
             let brs = brs.get_or_insert_with(|| block_rays(rays));
@@ -427,17 +417,7 @@ impl KdTree {
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                     let f = packet_frustum(frustum, &own, rays, live);
-                    return leaf_packet(
-                        pbr,
-                        rays,
-                        f,
-                        active,
-                        leaf,
-                        &self.prim_ids,
-                        &self.blocks,
-                        closest,
-                        |h, _, _| h.hit,
-                    );
+                    return self.leaf_packet(pbr, rays, f, active, leaf, closest, |h, _, _| h.hit);
                 }
                 let brs = brs.get_or_insert_with(|| block_rays(rays));
                 let mut hit = 0u32;
@@ -448,6 +428,32 @@ impl KdTree {
                 }
                 hit
             },
+        )
+    }
+
+    /// [`leaf_packet`] over this tree's leaf lists and blocks.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn leaf_packet<const N: usize>(
+        &self,
+        pbr: &PacketBlockRay<N>,
+        rays: &[Ray; N],
+        frustum: Option<&Frustum>,
+        lanes: u32,
+        leaf: KdNode,
+        closest: &mut [f32; N],
+        visit: impl FnMut(&LaneHits, u32, &mut [f32; N]) -> u32,
+    ) -> u32 {
+        leaf_packet(
+            pbr,
+            rays,
+            frustum,
+            lanes,
+            leaf,
+            &self.prim_ids,
+            &self.blocks,
+            closest,
+            visit,
         )
     }
 

@@ -116,5 +116,5 @@ pub use render::{
     tile_count,
 };
 pub use scene::{Scene, SceneHit, Surface};
-pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, offset_ray_origin};
+pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, first_hit_shadow_ray, offset_ray_origin};
 pub use texture::{Texture, TextureFilter};

@@ -87,6 +87,34 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3, scale: f32) -> Vec3 {
     out
 }
 
+/// The shadow ray from `from` towards a point light at `light`, ending just
+/// short of it (the interval `[0, 1 - 1e-4]` of `light - from`).
+#[inline]
+fn towards_light(from: Vec3, light: Vec3) -> Ray {
+    Ray::new(from, light - from, 0.0, 1.0 - 1e-4)
+}
+
+/// The shadow ray from `ray`'s first hit in `scene` towards a point light at
+/// `light`, as Whitted mode makes it: from the hit point moved off the
+/// surface on the side the ray arrives from (without passing one-sided
+/// back faces); from `ray`'s origin when it hits nothing. For measuring a
+/// frame's shadow rays without shading it (`openrt bench`, profiling probes).
+#[must_use]
+pub fn first_hit_shadow_ray(scene: &Scene, ray: &Ray, light: Vec3) -> Ray {
+    let from = scene
+        .intersect(ray)
+        .and_then(|h| scene.surface(ray, &h).ok())
+        .map_or(ray.origin, |s| {
+            let n = if s.geometric_normal.dot(ray.dir) > 0.0 {
+                -s.geometric_normal
+            } else {
+                s.geometric_normal
+            };
+            offset_ray_origin(s.point, n, s.error_scale)
+        });
+    towards_light(from, light)
+}
+
 /// Per-frame shading state.
 pub(crate) struct Shader<'a, T: Tracer = Scene> {
     pub scene: &'a Scene,
@@ -240,7 +268,7 @@ impl<T: Tracer> Shader<'_, T> {
         if self.mode != RenderMode::Whitted || lit_side(prep, light).is_none() {
             return None;
         }
-        Some(Ray::new(prep.p_out, light.position - prep.p_out, 0.0, 1.0 - 1e-4))
+        Some(towards_light(prep.p_out, light.position))
     }
 
     /// The radiance of a prepared hit, with `blocked(j)` telling whether

@@ -8,7 +8,7 @@
 //! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single]`
 use glam::Vec3;
 use openrt_accel::Ray;
-use openrt_core::offset_ray_origin;
+use openrt_core::first_hit_shadow_ray;
 use openrt_scene::ScenePlayer;
 use std::time::Instant;
 fn main() {
@@ -39,18 +39,7 @@ fn main() {
     for block in primary.chunks(16) {
         for &light in &lights {
             for r in block {
-                let out = scene
-                    .intersect(r)
-                    .and_then(|h| scene.surface(r, &h).ok())
-                    .map_or(r.origin, |s| {
-                        let n = if s.geometric_normal.dot(r.dir) > 0.0 {
-                            -s.geometric_normal
-                        } else {
-                            s.geometric_normal
-                        };
-                        offset_ray_origin(s.point, n, s.error_scale)
-                    });
-                shadows.push((Ray::new(out, light - out, 0.0, 1.0 - 1e-4), light));
+                shadows.push((first_hit_shadow_ray(&scene, r, light), light));
             }
         }
     }
