@@ -176,6 +176,7 @@ impl Aabb {
         let mut live = 0u32;
         for l in 0..N {
             let r = &rays[l];
+            let asked = lanes & (1 << l) != 0;
             let (o, d, inv) = (r.origin.to_array(), r.dir.to_array(), r.inv_dir.to_array());
             // `with_interval` keeps an invalid ray's own interval.
             let mut near = r.t_min;
@@ -199,16 +200,10 @@ impl Aabb {
             }
             // `clip`'s `t0 > t1` rejection (a NaN bound does not reject).
             #[allow(clippy::neg_cmp_op_on_partial_ord)]
-            let hit = !outside && !(near > far);
+            let hit = asked && !outside && !(near > far);
             t0[l] = if hit { near } else { 0.0 };
             t1[l] = if hit { far } else { 0.0 };
             live |= u32::from(hit) << l;
-        }
-        let live = live & lanes;
-        for l in 0..N {
-            if live & (1 << l) == 0 {
-                (t0[l], t1[l]) = (0.0, 0.0);
-            }
         }
         (t0, t1, live)
     }

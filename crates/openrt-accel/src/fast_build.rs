@@ -279,8 +279,10 @@ impl Fast {
             }
         }
         if both == n {
-            // Every item straddles: the clipped left boxes replace the
-            // originals, so give back the list as it came, rebuilt.
+            // Every item straddles: its left half overwrote it. An item's
+            // box lies inside its cell (the root cell bounds every box, a
+            // child's items are clipped to it), so the two halves' union is
+            // the box again, bit for bit: the list goes back as it came.
             for (k, it) in right.iter().enumerate() {
                 items[k].1 = items[k].1.union(it.1);
             }

@@ -6,8 +6,8 @@
 //! 2013, for the test; Wald, Benthin, Wagner & Slusallek 2001 for testing a
 //! packet's rays against one triangle at a time. Lanes that share the test's
 //! axis permutation (nearly every coherent packet) share the triangle's
-//! permuted coordinates; everything else is per lane, in arrays of `N` that
-//! the compiler turns into vector code.
+//! permuted coordinates; everything else is per lane, four lanes to an SSE
+//! register (`wide::f32x4`), a chunk at a time.
 //!
 //! NOTE: each lane repeats the scalar kernel's operations one for one (same
 //! subtractions and products in the same order, no fused multiply-add, the
@@ -16,7 +16,8 @@
 //! The one case it does not decide is an edge function that is exactly zero
 //! (a ray through an edge or a vertex): the scalar kernel recomputes those in
 //! f64 and applies its tie rule, so such lanes are handed back to it
-//! ([`LaneHits::edge`]). Tested against the scalar kernel in this module.
+//! ([`LaneHits::edge`], [`LaneHits::settle_edges`]). Tested against the
+//! scalar kernel in this module.
 
 use wide::f32x4;
 
