@@ -48,21 +48,55 @@ pub(crate) const PARALLEL_MIN: usize = 4096;
 /// museum's animart in docs/PERFORMANCE.md).
 pub const DEFAULT_REFIT_COST_LIMIT: f64 = 1.25;
 
-/// A primitive and its box clipped to the current cell.
-pub(crate) type Item = (u32, Aabb);
+/// The primitives' boxes, coordinate by coordinate, indexed by primitive id.
+///
+/// A node's list holds primitive ids only: an item's box clipped to its
+/// cell is its own box intersected with the cell (the cell is the
+/// intersection of its ancestors' half-spaces, and the root cell bounds
+/// every box), and the builder's decisions on clipped boxes are the same
+/// on the boxes themselves (a partition's plane lies inside the cell, the
+/// bins clamp to it; tested against clipping at every level), so a
+/// partition moves 4 bytes per item and reads 8.
+pub(crate) struct Boxes {
+    min: [Vec<f32>; 3],
+    max: [Vec<f32>; 3],
+}
 
-/// The valid triangles as items, with the box around them.
-pub(crate) fn items_of(tris: &[Triangle], valid: &[bool]) -> Result<(Vec<Item>, Aabb), AccelError> {
+impl Boxes {
+    /// The lowest and highest coordinate on `axis` of every primitive.
+    #[inline]
+    fn axis(&self, axis: usize) -> (&[f32], &[f32]) {
+        (&self.min[axis], &self.max[axis])
+    }
+}
+
+/// The ids of the valid triangles, every triangle's box, and the box
+/// around the valid ones.
+pub(crate) fn items_of(tris: &[Triangle], valid: &[bool]) -> Result<(Vec<u32>, Boxes, Aabb), AccelError> {
     if tris.len() > MAX_FIELD as usize {
         return Err(AccelError::TooManyPrimitives {
             count: tris.len(),
             limit: MAX_FIELD as usize,
         });
     }
-    let item = |(i, t): (usize, &Triangle)| valid[i].then(|| (i as u32, Aabb::from_points(t)));
-    let items: Vec<Item> = tris.iter().enumerate().filter_map(item).collect();
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(i.1));
-    Ok((items, bounds))
+    let mut boxes = Boxes {
+        min: std::array::from_fn(|_| Vec::with_capacity(tris.len())),
+        max: std::array::from_fn(|_| Vec::with_capacity(tris.len())),
+    };
+    let mut ids = Vec::with_capacity(tris.len());
+    let mut bounds = Aabb::EMPTY;
+    for (i, t) in tris.iter().enumerate() {
+        let b = Aabb::from_points(t);
+        for a in 0..3 {
+            boxes.min[a].push(b.min[a]);
+            boxes.max[a].push(b.max[a]);
+        }
+        if valid[i] {
+            ids.push(i as u32);
+            bounds = bounds.union(b);
+        }
+    }
+    Ok((ids, boxes, bounds))
 }
 
 /// Levels of a tree built on two threads each: one per doubling of the
@@ -97,8 +131,8 @@ impl Default for FastParams {
 }
 
 pub(crate) fn build_fast(tris: &[Triangle], valid: &[bool], params: &FastParams) -> Result<BuiltTree, AccelError> {
-    let (items, bounds) = items_of(tris, valid)?;
-    let mut b = Fast::new(params, items.len());
+    let (items, boxes, bounds) = items_of(tris, valid)?;
+    let mut b = Fast::new(params, &boxes, items.len());
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
@@ -112,14 +146,16 @@ pub(crate) struct Split {
     pub(crate) axis: usize,
     pub(crate) position: f32,
     pub(crate) lcell: Aabb,
-    pub(crate) left: Vec<Item>,
+    pub(crate) left: Vec<u32>,
     pub(crate) rcell: Aabb,
-    pub(crate) right: Vec<Item>,
+    pub(crate) right: Vec<u32>,
 }
 
 /// A tree under construction: depth-first nodes and leaf lists.
-pub(crate) struct Fast {
+pub(crate) struct Fast<'b> {
     params: FastParams,
+    /// Every primitive's box.
+    boxes: &'b Boxes,
     pub(crate) nodes: Vec<KdNode>,
     pub(crate) prim_ids: Vec<u32>,
     pub(crate) max_depth: usize,
@@ -130,11 +166,12 @@ pub(crate) struct Fast {
     pub(crate) cost: f64,
 }
 
-impl Fast {
-    /// An empty builder for `count` primitives.
-    pub(crate) fn new(params: &FastParams, count: usize) -> Self {
+impl<'b> Fast<'b> {
+    /// An empty builder for `count` primitives of `boxes`.
+    pub(crate) fn new(params: &FastParams, boxes: &'b Boxes, count: usize) -> Self {
         Self {
             params: *params,
+            boxes,
             nodes: Vec::with_capacity(count),
             prim_ids: Vec::with_capacity(count * 2),
             max_depth: ((default_max_depth(count) as f32 * params.depth_factor) as usize).min(MAX_DEPTH - 1),
@@ -147,6 +184,7 @@ impl Fast {
     pub(crate) fn sub(&self) -> Self {
         Self {
             params: self.params,
+            boxes: self.boxes,
             nodes: Vec::new(),
             prim_ids: Vec::new(),
             max_depth: self.max_depth,
@@ -180,20 +218,20 @@ impl Fast {
         self.params.min_leaf * self.params.leaf_growth.powi(depth as i32)
     }
 
-    pub(crate) fn leaf(&mut self, cell: &Aabb, items: &[Item]) -> Result<(), AccelError> {
+    pub(crate) fn leaf(&mut self, cell: &Aabb, items: &[u32]) -> Result<(), AccelError> {
         self.cost +=
             f64::from(SahParams::default().intersection_cost) * items.len() as f64 * f64::from(cell.surface_area());
         let offset = self.prim_ids.len();
         if offset > u32::MAX as usize - items.len() || items.len() > MAX_FIELD as usize {
             return Err(too_many_nodes());
         }
-        self.prim_ids.extend(items.iter().map(|i| i.0));
+        self.prim_ids.extend_from_slice(items);
         self.nodes.push(KdNode::leaf(offset as u32, items.len() as u32));
         Ok(())
     }
 
     /// The split of a node: `None` makes a leaf.
-    fn plan(&self, cell: &Aabb, items: &[Item], depth: usize) -> Option<(usize, f32)> {
+    fn plan(&self, cell: &Aabb, items: &[u32], depth: usize) -> Option<(usize, f32)> {
         let n = items.len();
         let p = self.params;
         if n as f32 <= self.max_leaf(depth) || depth >= self.max_depth {
@@ -212,9 +250,14 @@ impl Fast {
         let nb = nb.min(starts.len());
         let scale = nb as f32 / ext;
         let bin = |x: f32| (((x - lo) * scale) as usize).min(nb - 1);
-        for (_, b) in items {
-            starts[bin(b.min[axis])] += 1;
-            ends[bin(b.max[axis])] += 1;
+        // NOTE: the boxes are not clipped to the cell: `bin` sends what lies
+        // below the cell to the first bin (a negative float converts to 0)
+        // and what lies above it to the last, where its clipped coordinate
+        // goes (tested).
+        let (mins, maxs) = self.boxes.axis(axis);
+        for &id in items {
+            starts[bin(mins[id as usize])] += 1;
+            ends[bin(maxs[id as usize])] += 1;
         }
         let ext3 = cell.extent();
         let (k1, k2) = ((axis + 1) % 3, (axis + 2) % 3);
@@ -243,62 +286,61 @@ impl Fast {
         Some((axis, split))
     }
 
-    /// Children cells and item lists; `None` when every item straddles.
+    /// Children cells and item lists; `Err` gives the list back when every
+    /// item straddles the plane. `split` lies strictly inside the cell on
+    /// `axis`, so an item's clipped box ends at or below it exactly when its
+    /// own box does (and starts at or above it likewise).
     #[allow(clippy::type_complexity)]
     pub(crate) fn partition(
+        &self,
         cell: &Aabb,
-        items: Vec<Item>,
+        items: Vec<u32>,
         axis: usize,
         split: f32,
-    ) -> Result<(Aabb, Vec<Item>, Aabb, Vec<Item>), Vec<Item>> {
+    ) -> Result<(Aabb, Vec<u32>, Aabb, Vec<u32>), Vec<u32>> {
+        debug_assert!(cell.min[axis] < split && split < cell.max[axis]);
         let n = items.len();
         let mut lcell = *cell;
         lcell.max[axis] = split;
         let mut rcell = *cell;
         rcell.min[axis] = split;
-        let mut both = 0usize;
-        // PERF: the left list takes the input's place (each item read gives
-        // at most one left item, written at or before the read position);
-        // the right list is allocated once at its largest size (no growth:
-        // reallocations and their copies were 7% of a refit).
-        let mut right = Vec::with_capacity(n);
+        let (mins, maxs) = self.boxes.axis(axis);
+        // PERF: branch-free: every id is written to both lists and each
+        // list's end moves past it when it belongs there (the side of a
+        // triangle is unpredictable; with 4-byte ids the extra write costs
+        // less than the misprediction). The left list takes the input's
+        // place (each id read gives at most one left id, written at or
+        // before the read position).
+        let mut right = vec![0u32; n];
         let mut items = items;
-        let mut w = 0usize;
-        for r in 0..n {
-            let (id, b) = items[r];
-            if b.max[axis] <= split {
-                items[w] = (id, b);
-                w += 1;
-            } else if b.min[axis] >= split {
-                right.push((id, b));
-            } else {
-                items[w] = (id, b.intersection(lcell));
-                w += 1;
-                right.push((id, b.intersection(rcell)));
-                both += 1;
-            }
+        let (mut w, mut r, mut both) = (0usize, 0usize, 0usize);
+        for k in 0..n {
+            let id = items[k];
+            let (lo, hi) = (mins[id as usize], maxs[id as usize]);
+            let left = lo < split || hi <= split;
+            let above = hi > split;
+            items[w] = id;
+            right[r] = id;
+            w += usize::from(left);
+            r += usize::from(above);
+            both += usize::from(left & above);
         }
         if both == n {
-            // Every item straddles: its left half overwrote it. An item's
-            // box lies inside its cell (the root cell bounds every box, a
-            // child's items are clipped to it), so the two halves' union is
-            // the box again, bit for bit: the list goes back as it came.
-            for (k, it) in right.iter().enumerate() {
-                items[k].1 = items[k].1.union(it.1);
-            }
+            // Every item straddles: each was written over itself.
             return Err(items);
         }
         items.truncate(w);
+        right.truncate(r);
         Ok((lcell, items, rcell, right))
     }
 
     /// Plans and partitions a node; `Ok(None)` when it became a leaf.
-    pub(crate) fn split(&mut self, cell: &Aabb, items: Vec<Item>, depth: usize) -> Result<Option<Split>, AccelError> {
+    pub(crate) fn split(&mut self, cell: &Aabb, items: Vec<u32>, depth: usize) -> Result<Option<Split>, AccelError> {
         self.depth_reached = self.depth_reached.max(depth);
         let Some((axis, split)) = self.plan(cell, &items, depth) else {
             return self.leaf(cell, &items).map(|()| None);
         };
-        match Self::partition(cell, items, axis, split) {
+        match self.partition(cell, items, axis, split) {
             Ok((lcell, left, rcell, right)) => Ok(Some(Split {
                 axis,
                 position: split,
@@ -311,7 +353,7 @@ impl Fast {
         }
     }
 
-    pub(crate) fn node(&mut self, cell: Aabb, items: Vec<Item>, depth: usize) -> Result<(), AccelError> {
+    pub(crate) fn node(&mut self, cell: Aabb, items: Vec<u32>, depth: usize) -> Result<(), AccelError> {
         let Some(Split {
             axis,
             position: split,
@@ -338,7 +380,7 @@ impl Fast {
     /// Like [`Self::node`], building the two children on two threads for
     /// `levels` levels when the node is large (the commit runs while the
     /// render threads wait, so the cores are free).
-    fn node_parallel(&mut self, cell: Aabb, items: Vec<Item>, depth: usize, levels: u32) -> Result<(), AccelError> {
+    fn node_parallel(&mut self, cell: Aabb, items: Vec<u32>, depth: usize, levels: u32) -> Result<(), AccelError> {
         if levels == 0 || items.len() < PARALLEL_MIN {
             return self.node(cell, items, depth);
         }
@@ -386,13 +428,21 @@ mod tests {
 
     use super::*;
 
-    /// The partition written plainly: two fresh lists.
-    fn plain(cell: &Aabb, items: &[Item], axis: usize, split: f32) -> (Vec<Item>, Vec<Item>, usize) {
+    /// The partition written plainly, as before ids alone: two fresh lists
+    /// of boxes clipped to their cells, each box compared as clipped.
+    #[allow(clippy::type_complexity)]
+    fn plain(
+        cell: &Aabb,
+        items: &[(u32, Aabb)],
+        axis: usize,
+        split: f32,
+    ) -> (Vec<(u32, Aabb)>, Vec<(u32, Aabb)>, usize) {
         let (mut lcell, mut rcell) = (*cell, *cell);
         lcell.max[axis] = split;
         rcell.min[axis] = split;
         let (mut l, mut r, mut both) = (Vec::new(), Vec::new(), 0);
         for &(id, b) in items {
+            let b = b.intersection(*cell);
             if b.max[axis] <= split {
                 l.push((id, b));
             } else if b.min[axis] >= split {
@@ -406,53 +456,113 @@ mod tests {
         (l, r, both)
     }
 
+    fn ids(list: &[(u32, Aabb)]) -> Vec<u32> {
+        list.iter().map(|i| i.0).collect()
+    }
+
     #[test]
-    fn in_place_partition_matches_the_plain_one_and_gives_straddlers_back_whole() {
+    fn id_partition_matches_the_plain_clipped_one_and_gives_straddlers_back_whole() {
         let mut rng = SmallRng::seed_from_u64(12);
-        let cell = Aabb::new(Vec3::ZERO, Vec3::splat(10.0));
+        // Boxes reach past the cell on every side, as an item's own box
+        // reaches past the cells below the root.
+        let cell = Aabb::new(Vec3::splat(1.0), Vec3::splat(9.0));
+        let mut straddled = 0;
         for round in 0..200 {
             let n = rng.random_range(1..300);
-            let items: Vec<Item> = (0..n)
+            let axis = round % 3;
+            let items: Vec<(u32, Aabb)> = (0..n)
                 .map(|i| {
                     let p = Vec3::new(
-                        rng.random_range(0.0..9.0),
-                        rng.random_range(0.0..9.0),
-                        rng.random_range(0.0..9.0),
+                        rng.random_range(0.0..9.5),
+                        rng.random_range(0.0..9.5),
+                        rng.random_range(0.0..9.5),
                     );
-                    let e = Vec3::splat(rng.random_range(0.0..1.0));
-                    (i as u32, Aabb::new(p, (p + e).min(Vec3::splat(10.0))))
+                    let e = Vec3::splat(rng.random_range(0.0..1.5));
+                    let mut b = Aabb::new(p, p + e);
+                    // Some rounds split where every box straddles.
+                    if round % 10 == 0 {
+                        b.min[axis] = rng.random_range(0.0..4.0);
+                        b.max[axis] = rng.random_range(5.0..10.0);
+                    }
+                    (i as u32, b)
                 })
                 .collect();
-            let axis = round % 3;
-            // Some rounds split where every box straddles.
             let split = if round % 10 == 0 {
                 4.5
+            } else if round % 20 == 1 {
+                // On a box's upper face, then on a box's lower face.
+                items[0].1.max[axis].clamp(1.5, 8.5)
+            } else if round % 20 == 11 {
+                items[0].1.min[axis].clamp(1.5, 8.5)
             } else {
-                rng.random_range(0.5..9.5)
+                rng.random_range(1.5..8.5)
             };
-            let items = if round % 10 == 0 {
-                items
-                    .into_iter()
-                    .map(|(id, mut b)| {
-                        b.min[axis] = 4.0;
-                        b.max[axis] = 5.0;
-                        (id, b)
-                    })
-                    .collect()
-            } else {
-                items
+            let boxes = Boxes {
+                min: std::array::from_fn(|a| items.iter().map(|i| i.1.min[a]).collect()),
+                max: std::array::from_fn(|a| items.iter().map(|i| i.1.max[a]).collect()),
             };
+            let b = Fast::new(&FastParams::default(), &boxes, n);
             let (l, r, both) = plain(&cell, &items, axis, split);
-            match Fast::partition(&cell, items.clone(), axis, split) {
-                Ok((_, left, _, right)) => {
+            match b.partition(&cell, ids(&items), axis, split) {
+                Ok((lcell, left, rcell, right)) => {
                     assert!(both < items.len());
-                    assert_eq!((left, right), (l, r));
+                    assert_eq!((left, right), (ids(&l), ids(&r)));
+                    assert_eq!((lcell.max[axis], rcell.min[axis]), (split, split));
                 }
                 Err(back) => {
+                    straddled += 1;
                     assert_eq!(both, items.len());
-                    assert_eq!(back, items, "every item straddles: the list comes back as it was");
+                    assert_eq!(back, ids(&items), "every item straddles: the list comes back as it was");
                 }
             }
+        }
+        assert_eq!(straddled, 20);
+    }
+
+    #[test]
+    fn clipped_coordinates_are_the_ones_clipping_at_every_level_gave() {
+        // A fast tree's leaves, rebuilt from the boxes clipped level by
+        // level (the plain partition above), hold the same ids.
+        let tris = crate::meshgen::bumpy_sphere(3_000, 3, 0.4);
+        let valid = vec![true; tris.len()];
+        let (items, boxes, bounds) = items_of(&tris, &valid).unwrap();
+        let fast = Fast::new(&FastParams::default(), &boxes, items.len());
+        let mut clipped: Vec<(u32, Aabb)> = items
+            .iter()
+            .map(|&i| (i, Aabb::from_points(&tris[i as usize])))
+            .collect();
+        let mut ids_now = items;
+        let mut cell = bounds;
+        for depth in 0..12 {
+            let Some((axis, split)) = fast.plan(&cell, &ids_now, depth) else {
+                break;
+            };
+            let (l, r, _) = plain(&cell, &clipped, axis, split);
+            let Ok((lcell, left, rcell, right)) = fast.partition(&cell, ids_now, axis, split) else {
+                panic!("a planned split leaves some item on one side");
+            };
+            assert_eq!((left.clone(), right.clone()), (ids(&l), ids(&r)));
+            // Follow the larger side.
+            (cell, ids_now, clipped) = if left.len() >= right.len() {
+                (lcell, left, l)
+            } else {
+                (rcell, right, r)
+            };
+            // Binning the clipped boxes directly picks the same plane.
+            let direct = {
+                let mut b2 = Boxes {
+                    min: std::array::from_fn(|_| vec![0.0; tris.len()]),
+                    max: std::array::from_fn(|_| vec![0.0; tris.len()]),
+                };
+                for &(id, bx) in &clipped {
+                    for a in 0..3 {
+                        b2.min[a][id as usize] = bx.min[a];
+                        b2.max[a][id as usize] = bx.max[a];
+                    }
+                }
+                Fast::new(&FastParams::default(), &b2, ids_now.len()).plan(&cell, &ids_now, depth + 1)
+            };
+            assert_eq!(fast.plan(&cell, &ids_now, depth + 1), direct);
         }
     }
 }

@@ -17,7 +17,7 @@
 //! Shirley, "Ray tracing deformable scenes using dynamic bounding volume
 //! hierarchies", 2007).
 
-use crate::fast_build::{Fast, FastParams, Item, PARALLEL_MIN, items_of, parallel_levels};
+use crate::fast_build::{Fast, FastParams, PARALLEL_MIN, items_of, parallel_levels};
 use crate::kdnode::{KdNode, MAX_NODES, too_many_nodes};
 use crate::sah_build::BuiltTree;
 use crate::{Aabb, AccelError, Triangle};
@@ -29,8 +29,8 @@ pub(crate) fn refit(
     valid: &[bool],
     params: &FastParams,
 ) -> Result<BuiltTree, AccelError> {
-    let (items, bounds) = items_of(tris, valid)?;
-    let mut b = Fast::new(params, items.len());
+    let (items, boxes, bounds) = items_of(tris, valid)?;
+    let mut b = Fast::new(params, &boxes, items.len());
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
@@ -40,7 +40,7 @@ pub(crate) fn refit(
     Ok(b.finish(bounds))
 }
 
-impl Fast {
+impl Fast<'_> {
     /// Rebuilds the subtree of cell `cell` holding `items` on the planes
     /// below old node `at` (`None`: the old cell was empty); the two
     /// children of the top `levels` levels are built on two threads.
@@ -49,7 +49,7 @@ impl Fast {
         old: &[KdNode],
         at: Option<u32>,
         cell: Aabb,
-        items: Vec<Item>,
+        items: Vec<u32>,
         depth: usize,
         levels: u32,
     ) -> Result<(), AccelError> {
@@ -73,7 +73,7 @@ impl Fast {
         }
         self.depth_reached = self.depth_reached.max(depth);
         let count = items.len();
-        let (lcell, left, rcell, right) = match Self::partition(&cell, items, axis, split) {
+        let (lcell, left, rcell, right) = match self.partition(&cell, items, axis, split) {
             Ok(parts) => parts,
             // Every triangle straddles the plane: the fast builder decides.
             Err(items) => return self.node(cell, items, depth),
