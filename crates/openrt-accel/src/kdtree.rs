@@ -5,7 +5,9 @@ use std::time::Instant;
 use crate::fast_build::{FastParams, build_fast};
 use crate::frustum::Frustum;
 use crate::kdnode::{KdNode, MAX_DEPTH, elide_empty_leaves};
-use crate::leaf_blocks::{BlockRay, LANES, TriBlock, leaf_any, leaf_closest, leaf_packet, pack_leaves};
+use crate::leaf_blocks::{
+    BlockRay, LANES, TriBlock, leaf_any, leaf_closest, leaf_occluder_where, leaf_packet, pack_leaves,
+};
 use crate::packet::lanes_of;
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
@@ -44,6 +46,15 @@ fn packet_frustum<'a, const N: usize>(
         own.get_or_init(|| Frustum::new(rays, lanes).or_else(|| Frustum::ending(rays, lanes)))
             .as_ref()
     })
+}
+
+/// `true` when the hit `(t, b1, b2)` of `ray` lies at least `margin` inside
+/// the ray's finite interval (relative to its length) and inside the
+/// triangle (each barycentric coordinate).
+fn well_inside(ray: &Ray, (t, b1, b2): (f32, f32, f32), margin: f32) -> bool {
+    let span = ray.t_max - ray.t_min;
+    let m = margin * span;
+    span.is_finite() && t > ray.t_min + m && t < ray.t_max - m && b1 > margin && b2 > margin && 1.0 - b1 - b2 > margin
 }
 
 /// Each lane's own pre-test constants.
@@ -304,14 +315,79 @@ impl KdTree {
     /// `true` when anything is hit in `(ray.t_min, ray.t_max)` (shadow rays).
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        let Some((t0, t1)) = self.bounds.clip(ray) else {
-            return false;
-        };
+        self.occluder(ray).is_some()
+    }
+
+    /// [`KdTree::occluded`] naming where the ray is blocked: the leaf in
+    /// which the walk found a triangle hit in `(ray.t_min, ray.t_max)` (not
+    /// necessarily the closest hit's), for [`KdTree::leaf_blocks`].
+    #[must_use]
+    pub fn occluder(&self, ray: &Ray) -> Option<KdNode> {
+        let (t0, t1) = self.bounds.clip(ray)?;
         let mut closest = ray.t_max;
         let br = BlockRay::new(ray);
+        let mut found = None;
         traverse(&self.nodes, ray, t0, t1, &mut closest, |leaf, closest| {
-            leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest)
-        })
+            let hit = leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest);
+            if hit {
+                found = Some(leaf);
+            }
+            hit
+        });
+        found
+    }
+
+    /// `true` when a triangle of `leaf` (one of this tree's leaves, as
+    /// [`KdTree::occluder`] names them; anything else gives `false`) is hit
+    /// by `ray` at least `margin` inside the ray's interval (relative to its
+    /// length) and inside the triangle (each barycentric coordinate): a hit
+    /// that no rounding of the walk can lose, so [`KdTree::occluded`] is
+    /// `true` for that ray too. A finite interval is required.
+    #[must_use]
+    pub fn leaf_blocks(&self, ray: &Ray, leaf: KdNode, margin: f32) -> bool {
+        if !self.owns_leaf(leaf) {
+            return false;
+        }
+        let br = BlockRay::new(ray);
+        let mut inside = false;
+        leaf_occluder_where(ray, &br, leaf, &self.prim_ids, &self.blocks, |h| {
+            inside = well_inside(ray, h, margin);
+            inside
+        });
+        inside
+    }
+
+    /// [`KdTree::leaf_blocks`] for the `lanes` of a packet: the lanes blocked so.
+    #[must_use]
+    pub fn leaf_blocks_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32, leaf: KdNode, margin: f32) -> u32 {
+        if !self.owns_leaf(leaf) || lanes == 0 {
+            return 0;
+        }
+        let Some(pbr) = PacketBlockRay::new(rays, lanes) else {
+            return lanes_of(lanes).fold(0, |m, l| m | (u32::from(self.leaf_blocks(&rays[l], leaf, margin)) << l));
+        };
+        let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
+        let mut got = 0u32;
+        self.leaf_packet(&pbr, rays, None, lanes, leaf, &mut closest, |h, _, _| {
+            for l in lanes_of(h.hit) {
+                if well_inside(&rays[l], h.lane(l), margin) {
+                    got |= 1 << l;
+                }
+            }
+            // Settled lanes leave; the others try the leaf's other triangles.
+            got & h.hit
+        });
+        got
+    }
+
+    /// `true` for a leaf of this tree (its lists in range).
+    fn owns_leaf(&self, leaf: KdNode) -> bool {
+        let (off, count) = (leaf.prim_offset() as usize, leaf.prim_count() as usize);
+        leaf.is_leaf()
+            && count > 0
+            && off.is_multiple_of(LANES)
+            && off + count.div_ceil(LANES) * LANES <= self.prim_ids.len()
+            && off / LANES + count.div_ceil(LANES) <= self.blocks.len()
     }
 
     /// [`KdTree::intersect_within`] for the rays of the `lanes` mask at
@@ -398,16 +474,29 @@ impl KdTree {
     /// has it (see [`KdTree::intersect_packet_in`]).
     #[must_use]
     pub fn occluded_packet_in<const N: usize>(&self, rays: &[Ray; N], lanes: u32, frustum: Option<&Frustum>) -> u32 {
+        self.occluder_packet_in(rays, lanes, frustum).0
+    }
+
+    /// [`KdTree::occluded_packet_in`], also naming the leaf where one of
+    /// the blocked lanes was blocked (the first found), as [`KdTree::occluder`].
+    #[must_use]
+    pub fn occluder_packet_in<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        frustum: Option<&Frustum>,
+    ) -> (u32, Option<KdNode>) {
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
         let (t0, t1, live) = self.bounds.clip_lanes(rays, lanes, &closest);
         if live == 0 {
-            return 0;
+            return (0, None);
         }
         let pbr = PacketBlockRay::new(rays, live);
         let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
-        traverse_packet(
+        let mut found = None;
+        let blocked = traverse_packet(
             &self.nodes,
             rays,
             live,
@@ -417,18 +506,24 @@ impl KdTree {
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                     let f = packet_frustum(frustum, &own, rays, live);
-                    return self.leaf_packet(pbr, rays, f, active, leaf, closest, |h, _, _| h.hit);
+                    let hit = self.leaf_packet(pbr, rays, f, active, leaf, closest, |h, _, _| h.hit);
+                    if hit != 0 {
+                        found = found.or(Some(leaf));
+                    }
+                    return hit;
                 }
                 let brs = brs.get_or_insert_with(|| block_rays(rays));
                 let mut hit = 0u32;
                 for l in lanes_of(active) {
                     if leaf_any(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l]) {
                         hit |= 1 << l;
+                        found = found.or(Some(leaf));
                     }
                 }
                 hit
             },
-        )
+        );
+        (blocked, found)
     }
 
     /// [`leaf_packet`] over this tree's leaf lists and blocks.
@@ -652,5 +747,100 @@ impl KdTree {
     #[must_use]
     pub fn clipped_triangle_bounds(&self, prim: u32, cell: &Aabb) -> Aabb {
         clipped_bounds(&self.tris[prim as usize], cell)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::meshgen;
+
+    /// Every non-empty leaf of `tree`.
+    fn leaves(tree: &KdTree) -> Vec<KdNode> {
+        tree.nodes()
+            .iter()
+            .copied()
+            .filter(|n| n.is_leaf() && n.prim_count() > 0)
+            .collect()
+    }
+
+    #[test]
+    fn a_leaf_settles_only_hits_well_inside_and_never_one_the_walk_misses() {
+        let tris = meshgen::bumpy_sphere(2_000, 21, 0.3);
+        let tree = KdTree::build_sah(tris.clone()).unwrap();
+        let b = tree.bounds();
+        let margin = 1e-3;
+        let mut settled = 0;
+        // Segments from outside the sphere to points around it (shadow rays).
+        let rays: Vec<Ray> = meshgen::random_rays(300, 5, b)
+            .into_iter()
+            .map(|r| Ray::new(r.origin, r.dir * 3.0, 0.0, 1.0 - 1e-4))
+            .chain(
+                meshgen::hard_rays(&tris, 100, 6)
+                    .into_iter()
+                    .map(|r| Ray::new(r.origin, r.dir, 0.0, 50.0)),
+            )
+            .collect();
+        for r in &rays {
+            let walk = tree.occluded(r);
+            assert_eq!(tree.occluder(r).is_some(), walk);
+            for leaf in leaves(&tree) {
+                if tree.leaf_blocks(r, leaf, margin) {
+                    settled += 1;
+                    assert!(walk, "a leaf settled {r:?}, which the walk finds unblocked");
+                }
+            }
+            // A blocked ray's own leaf: settles it unless its hits lie near
+            // an edge or an end of the interval.
+            if let Some(leaf) = tree.occluder(r) {
+                assert!(tree.owns_leaf(leaf));
+            }
+        }
+        assert!(settled > 100, "{settled} settlements");
+        // Not a leaf of the tree: nothing, and no panic.
+        let r = &rays[0];
+        for bogus in [
+            KdNode::leaf(u32::MAX - 64, 7),
+            KdNode::leaf(1, 3),
+            KdNode::interior(0, 0.5),
+        ] {
+            assert!(!tree.leaf_blocks(r, bogus, margin));
+            let pk: [Ray; 4] = std::array::from_fn(|l| rays[l]);
+            assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, bogus, margin), 0);
+        }
+    }
+
+    #[test]
+    fn the_margin_keeps_hits_near_an_edge_or_an_end_of_the_interval_out() {
+        // One triangle in the plane z = 0 with vertices (0,0), (1,0), (0,1).
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let tree = KdTree::build_sah(vec![tri]).unwrap();
+        let leaf = leaves(&tree)[0];
+        let down = |x: f32, y: f32, t_max: f32| Ray::new(Vec3::new(x, y, 1.0), Vec3::new(0.0, 0.0, -2.0), 0.0, t_max);
+        let m = 1e-3;
+        // The middle of the triangle, half way along the segment.
+        assert!(tree.leaf_blocks(&down(0.25, 0.25, 1.0), leaf, m));
+        // Near an edge (b1 = 1e-4), and a hit at 0.9999 of the interval.
+        assert!(!tree.leaf_blocks(&down(1e-4, 0.25, 1.0), leaf, m));
+        assert!(tree.leaf_blocks(&down(1e-4, 0.25, 1.0), leaf, 0.0));
+        assert!(!tree.leaf_blocks(&down(0.25, 0.25, 0.50005), leaf, m));
+        assert!(tree.leaf_blocks(&down(0.25, 0.25, 0.50005), leaf, 0.0));
+        // An infinite interval has no inside.
+        assert!(!tree.leaf_blocks(
+            &Ray::new(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 0.0, f32::INFINITY),
+            leaf,
+            m
+        ));
+        // The packet form, lane by lane.
+        let pk = [
+            down(0.25, 0.25, 1.0),
+            down(1e-4, 0.25, 1.0),
+            down(0.25, 0.25, 0.50005),
+            down(0.3, 0.2, 1.0),
+        ];
+        assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, leaf, m), 0b1001);
+        assert_eq!(tree.leaf_blocks_packet(&pk, 0b0110, leaf, m), 0);
     }
 }

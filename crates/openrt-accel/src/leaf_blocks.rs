@@ -221,6 +221,21 @@ pub(crate) fn leaf_any(ray: &Ray, br: &BlockRay, leaf: KdNode, ids: &[u32], bloc
     })
 }
 
+/// Calls `accept(hit)` for the leaf's triangles hit below `ray.t_max`, in
+/// leaf order, until it returns `true`.
+pub(crate) fn leaf_occluder_where(
+    ray: &Ray,
+    br: &BlockRay,
+    leaf: KdNode,
+    ids: &[u32],
+    blocks: &[TriBlock],
+    mut accept: impl FnMut(TriHit) -> bool,
+) {
+    for_each_candidate(br, leaf, ids, blocks, |_, tri| {
+        intersect_triangle(ray, tri, ray.t_max).is_some_and(&mut accept)
+    });
+}
+
 /// Tests the triangles of `leaf` against the `lanes` of `rays`, each lane
 /// over `(t_min, closest[l])`, in leaf order (padding slots included, as
 /// [`for_each_candidate`] meets them), and calls `visit(hits, prim,

@@ -84,6 +84,7 @@ mod limits;
 mod material;
 mod matrix_stack;
 mod object;
+mod occluder_hint;
 mod pool;
 mod primitive;
 mod render;
@@ -109,6 +110,7 @@ pub use limits::{
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{ObjectGeometry, ObjectMesh, ShadingData};
+pub use occluder_hint::{HINT_MARGIN, OccluderHint};
 pub use pool::ThreadPool;
 pub use primitive::PrimitiveKind;
 pub use render::{

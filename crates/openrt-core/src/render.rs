@@ -14,7 +14,7 @@ use crate::camera::CameraRays;
 use crate::shade::{Cone, Shader};
 use crate::tracer::Tracer;
 use crate::{
-    Camera, CoreError, Environment, RayCounts, RenderMode, Scene, TextureFilter, ThreadPool, check_depth,
+    Camera, CoreError, Environment, OccluderHint, RayCounts, RenderMode, Scene, TextureFilter, ThreadPool, check_depth,
     check_image_size, check_spp,
 };
 
@@ -445,6 +445,7 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) -> Vec<TileResult> {
         max_depth: job.settings.max_depth,
         filter: job.settings.texture_filter,
         counts: RayCounts::default(),
+        occluders: vec![OccluderHint::new(); job.env.lights.len()],
     };
     let spp = job.settings.spp.max(1);
     // Each sample's cone covers its share of the pixel.
@@ -461,6 +462,9 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) -> Vec<TileResult> {
         }
         let index = job.list.as_ref().map_or(k, |l| l[k] as usize);
         shader.counts = RayCounts::default();
+        // NOTE: a tile's hints start empty, so that they depend on nothing
+        // outside the tile (they never change an answer either way).
+        shader.occluders.fill(OccluderHint::new());
         let (tx, ty) = (index as u32 % job.tiles_x, index as u32 / job.tiles_x);
         let (x0, y0) = (tx * TILE, ty * TILE);
         let (x1, y1) = (

@@ -6,6 +6,7 @@ use glam::{Vec2, Vec3};
 use openrt_accel::{InstanceBsp, Ray, Triangle, lanes_of, traverse, traverse_packet};
 
 use crate::instance::InstanceRecord;
+use crate::occluder_hint::{HINT_MARGIN, OccluderHint};
 use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, Texture};
 
 /// Entries of the mailboxes (one per ray, or one per packet with a lane mask
@@ -150,6 +151,44 @@ impl Scene {
         })
     }
 
+    /// [`Scene::occluded`], trying `hint`'s triangle first (what blocked an
+    /// earlier ray towards the same light) and keeping this ray's blocker
+    /// in it. The same answer whatever the hint holds (see [`OccluderHint`]).
+    #[must_use]
+    pub fn occluded_hinted(&self, ray: &Ray, hint: &mut OccluderHint) -> bool {
+        if self.hint_blocks(hint, ray) {
+            return true;
+        }
+        let mut found = None;
+        let blocked = self.walk(ray, |i, inst, closest| {
+            found = inst
+                .geometry
+                .tree
+                .occluder(&inst.ray_to_object(ray, *closest))
+                .map(|leaf| (i, leaf));
+            found.is_some()
+        });
+        if found.is_some() {
+            hint.0 = found;
+        }
+        blocked
+    }
+
+    /// `true` when a triangle of the hint's leaf blocks `ray` well inside the
+    /// ray's interval and inside the triangle ([`HINT_MARGIN`]): there, the
+    /// walk would find a blocker too.
+    fn hint_blocks(&self, hint: &OccluderHint, ray: &Ray) -> bool {
+        let Some((i, leaf)) = hint.0 else {
+            return false;
+        };
+        self.instances.get(i as usize).is_some_and(|inst| {
+            // NOTE: the ray the walk gives the instance, bit for bit.
+            inst.geometry
+                .tree
+                .leaf_blocks(&inst.ray_to_object(ray, ray.t_max), leaf, HINT_MARGIN)
+        })
+    }
+
     /// The two-level walk shared by both queries: clip to the scene box,
     /// traverse the top-level BSP front to back, and call `test(index,
     /// instance, closest)` once per instance per ray (mailbox). `test`
@@ -234,7 +273,7 @@ impl Scene {
     #[must_use]
     pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
         let frustum = openrt_accel::Frustum::new(rays, lanes);
-        self.occluded_packet_in(rays, lanes, frustum.as_ref())
+        self.occluded_packet_in(rays, lanes, frustum.as_ref()).0
     }
 
     /// [`Scene::occluded_packet`] for rays that all end at `target`
@@ -244,28 +283,80 @@ impl Scene {
     #[must_use]
     pub fn occluded_packet_toward<const N: usize>(&self, rays: &[Ray; N], lanes: u32, target: Vec3) -> u32 {
         let frustum = openrt_accel::Frustum::toward(rays, lanes, target);
-        self.occluded_packet_in(rays, lanes, frustum.as_ref())
+        self.occluded_packet_in(rays, lanes, frustum.as_ref()).0
     }
 
+    /// [`Scene::occluded_packet_toward`], trying `hint`'s triangle first on
+    /// every lane and keeping a blocker of this packet in it, as
+    /// [`Scene::occluded_hinted`]. The same answer whatever the hint holds.
+    #[must_use]
+    pub fn occluded_packet_toward_hinted<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        target: Vec3,
+        hint: &mut OccluderHint,
+    ) -> u32 {
+        let blocked = self.hint_blocks_packet(hint, rays, lanes);
+        let rest = lanes & !blocked;
+        if rest == 0 {
+            return blocked;
+        }
+        let frustum = openrt_accel::Frustum::toward(rays, rest, target);
+        let (more, found) = self.occluded_packet_in(rays, rest, frustum.as_ref());
+        if found.is_some() {
+            hint.0 = found;
+        }
+        blocked | more
+    }
+
+    /// The lanes of a packet that [`Scene::hint_blocks`] settles.
+    fn hint_blocks_packet<const N: usize>(&self, hint: &OccluderHint, rays: &[Ray; N], lanes: u32) -> u32 {
+        let Some((i, leaf)) = hint.0 else {
+            return 0;
+        };
+        let Some(inst) = self.instances.get(i as usize) else {
+            return 0;
+        };
+        let tree = &inst.geometry.tree;
+        if inst.identity {
+            // The world rays are the rays the walk gives the instance.
+            return tree.leaf_blocks_packet(rays, lanes, leaf, HINT_MARGIN);
+        }
+        let mut local = *rays;
+        for l in lanes_of(lanes) {
+            local[l] = inst.ray_to_object(&rays[l], rays[l].t_max);
+        }
+        tree.leaf_blocks_packet(&local, lanes, leaf, HINT_MARGIN)
+    }
+
+    /// The blocked lanes, and where one of them was blocked (instance, leaf).
     fn occluded_packet_in<const N: usize>(
         &self,
         rays: &[Ray; N],
         lanes: u32,
         frustum: Option<&openrt_accel::Frustum>,
-    ) -> u32 {
+    ) -> (u32, Option<(u32, openrt_accel::KdNode)>) {
         let mut local = *rays;
-        self.walk_packet(rays, lanes, frustum, |_, inst, active, closest| {
-            if inst.identity {
+        let mut found = None;
+        let blocked = self.walk_packet(rays, lanes, frustum, |i, inst, active, closest| {
+            let (hit, prim) = if inst.identity {
                 // PERF: the world rays as they are: an any-hit walk never
                 // lowers a lane's bound, so `ray_to_object` would only copy
                 // them.
-                return inst.geometry.tree.occluded_packet_in(rays, active, frustum);
+                inst.geometry.tree.occluder_packet_in(rays, active, frustum)
+            } else {
+                for l in lanes_of(active) {
+                    local[l] = inst.ray_to_object(&rays[l], closest[l]);
+                }
+                inst.geometry.tree.occluder_packet_in(&local, active, None)
+            };
+            if let Some(leaf) = prim {
+                found = found.or(Some((i, leaf)));
             }
-            for l in lanes_of(active) {
-                local[l] = inst.ray_to_object(&rays[l], closest[l]);
-            }
-            inst.geometry.tree.occluded_packet_in(&local, active, None)
-        })
+            hit
+        });
+        (blocked, found)
     }
 
     /// The two-level walk of a packet, shared by both packet queries: each

@@ -4,7 +4,7 @@ use glam::Vec3;
 use openrt_accel::{Ray, lanes_of, sign_groups};
 
 use crate::tracer::Tracer;
-use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
+use crate::{Environment, OccluderHint, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
 /// What a frame computes per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -125,6 +125,8 @@ pub(crate) struct Shader<'a, T: Tracer = Scene> {
     pub max_depth: u32,
     pub filter: TextureFilter,
     pub counts: RayCounts,
+    /// The last occluder of each light (shadow cache), emptied per tile.
+    pub occluders: Vec<OccluderHint>,
 }
 
 /// A ray cone (Akenine-Möller et al., "Texture Level of Detail Strategies
@@ -190,7 +192,7 @@ impl<T: Tracer> Shader<'_, T> {
         for (j, light) in lights.iter().enumerate() {
             if let Some(shadow) = self.shadow_ray(&prep, light) {
                 self.counts.shadow += 1;
-                if self.tracer.occluded(&shadow) {
+                if self.tracer.occluded_hinted(&shadow, &mut self.occluders[j]) {
                     if let Some(b) = list.get_mut(j) {
                         *b = true;
                     } else {
@@ -378,7 +380,7 @@ impl<T: Tracer> Shader<'_, T> {
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
             blocked.reserve(self.env.lights.len());
-            for light in &self.env.lights {
+            for (j, light) in self.env.lights.iter().enumerate() {
                 let mut shadow = *rays;
                 let mut mask = 0u32;
                 for (l, p) in preps.iter().enumerate() {
@@ -391,7 +393,8 @@ impl<T: Tracer> Shader<'_, T> {
                 blocked.push(if mask == 0 {
                     0
                 } else {
-                    self.tracer.occluded_packet_toward(&shadow, mask, light.position)
+                    self.tracer
+                        .occluded_packet_toward_hinted(&shadow, mask, light.position, &mut self.occluders[j])
                 });
             }
         }

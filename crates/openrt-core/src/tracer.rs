@@ -4,7 +4,7 @@
 
 use openrt_accel::Ray;
 
-use crate::{Scene, SceneHit};
+use crate::{OccluderHint, Scene, SceneHit};
 
 /// A traversal backend for the shader.
 pub(crate) trait Tracer: Sync {
@@ -21,6 +21,26 @@ pub(crate) trait Tracer: Sync {
     fn occluded_packet_toward<const N: usize>(&self, rays: &[Ray; N], lanes: u32, target: glam::Vec3) -> u32 {
         let _ = target;
         self.occluded_packet(rays, lanes)
+    }
+    /// [`Tracer::occluded`] for a shadow ray, with the last occluder of its
+    /// light, which a backend may try first and update ([`OccluderHint`]);
+    /// the same answer either way. Embree's backends ignore it (its any-hit
+    /// query names no blocker).
+    fn occluded_hinted(&self, ray: &Ray, hint: &mut OccluderHint) -> bool {
+        let _ = hint;
+        self.occluded(ray)
+    }
+    /// [`Tracer::occluded_packet_toward`] with the last occluder of the
+    /// light at `target`, as [`Tracer::occluded_hinted`].
+    fn occluded_packet_toward_hinted<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        target: glam::Vec3,
+        hint: &mut OccluderHint,
+    ) -> u32 {
+        let _ = hint;
+        self.occluded_packet_toward(rays, lanes, target)
     }
 }
 
@@ -48,5 +68,21 @@ impl Tracer for Scene {
     #[inline]
     fn occluded_packet_toward<const N: usize>(&self, rays: &[Ray; N], lanes: u32, target: glam::Vec3) -> u32 {
         Scene::occluded_packet_toward(self, rays, lanes, target)
+    }
+
+    #[inline]
+    fn occluded_hinted(&self, ray: &Ray, hint: &mut OccluderHint) -> bool {
+        Scene::occluded_hinted(self, ray, hint)
+    }
+
+    #[inline]
+    fn occluded_packet_toward_hinted<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        target: glam::Vec3,
+        hint: &mut OccluderHint,
+    ) -> u32 {
+        Scene::occluded_packet_toward_hinted(self, rays, lanes, target, hint)
     }
 }

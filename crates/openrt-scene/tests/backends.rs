@@ -15,7 +15,8 @@ use std::sync::Arc;
 
 use openrt_accel::{PacketWidth, Ray, lanes_mask};
 use openrt_core::{
-    Backend, Camera, Environment, RenderMode, RenderSettings, Renderer, Scene, SceneHit, offset_ray_origin,
+    Backend, Camera, Environment, HINT_MARGIN, OccluderHint, RenderMode, RenderSettings, Renderer, Scene, SceneHit,
+    offset_ray_origin,
 };
 use openrt_scene::ScenePlayer;
 use rand::rngs::SmallRng;
@@ -108,6 +109,74 @@ fn compare<const N: usize>(name: &str, scene: &Scene, rays: &[Ray], seed: u64) -
     (hits, lanes_seen)
 }
 
+/// Shadow rays (light by light, in the order of `frame_rays`) answered
+/// with last-occluder hints equal the plain answers: hints kept as the
+/// renderer keeps them (one per light, single rays and packets towards the
+/// light), and every leaf of every instance (a spread of 1,500 of them in
+/// larger scenes) as the hint of a sample of the rays. Returns how many
+/// (ray, leaf) pairs a leaf settled.
+fn hinted(name: &str, scene: &Scene, env: &Environment, shadow: &[Ray]) -> usize {
+    let lights = env.lights.len();
+    let mut running = vec![OccluderHint::new(); lights];
+    for (k, r) in shadow.iter().enumerate() {
+        let want = scene.occluded(r);
+        assert_eq!(
+            scene.occluded_hinted(r, &mut running[k % lights]),
+            want,
+            "{name}: shadow ray {k}"
+        );
+    }
+    for (j, light) in env.lights.iter().enumerate() {
+        let mine: Vec<Ray> = shadow.iter().skip(j).step_by(lights).copied().collect();
+        let mut hint = OccluderHint::new();
+        for chunk in mine.chunks(16) {
+            let pk: [Ray; 16] = std::array::from_fn(|l| chunk[l.min(chunk.len() - 1)]);
+            let lanes = lanes_mask(chunk.len());
+            let want = scene.occluded_packet_toward(&pk, lanes, light.position);
+            let got = scene.occluded_packet_toward_hinted(&pk, lanes, light.position, &mut hint);
+            assert_eq!(got, want, "{name}: light {j} packet");
+        }
+    }
+    let mut every: Vec<OccluderHint> = scene
+        .instances()
+        .iter()
+        .enumerate()
+        .flat_map(|(i, inst)| {
+            let leaves = inst
+                .geometry
+                .tree
+                .nodes()
+                .iter()
+                .filter(|n| n.is_leaf() && n.prim_count() > 0);
+            leaves.map(move |&n| OccluderHint::naming(i as u32, n))
+        })
+        .collect();
+    let stride = every.len().div_ceil(1_500);
+    every = every.into_iter().step_by(stride.max(1)).collect();
+    // Hints that name nothing of this scene.
+    let some_leaf = every.first().and_then(OccluderHint::get).map(|h| h.1);
+    if let Some(leaf) = some_leaf {
+        every.push(OccluderHint::naming(u32::MAX, leaf));
+    }
+    let mut settled = 0;
+    for r in shadow.iter().step_by(shadow.len().div_ceil(300).max(1)) {
+        let want = scene.occluded(r);
+        for h in &every {
+            let mut hint = *h;
+            assert_eq!(scene.occluded_hinted(r, &mut hint), want, "{name}: hint {h:?}");
+            if let Some((i, leaf)) = h.get().filter(|(i, _)| (*i as usize) < scene.instances().len()) {
+                let inst = &scene.instances()[i as usize];
+                settled += usize::from(inst.geometry.tree.leaf_blocks(
+                    &inst.ray_to_object(r, r.t_max),
+                    leaf,
+                    HINT_MARGIN,
+                ));
+            }
+        }
+    }
+    settled
+}
+
 fn sweep(name: &str, player: &mut ScenePlayer, frames: &[u32], w: u32, h: u32) {
     for &f in frames {
         let t = player.time_of(f);
@@ -115,6 +184,12 @@ fn sweep(name: &str, player: &mut ScenePlayer, frames: &[u32], w: u32, h: u32) {
         let scene = player.ctx().scene();
         let env = player.env();
         let kinds = frame_rays(&scene, &env, &player.camera(t), w, h);
+        let settled = hinted(&format!("{name} frame {f}"), &scene, &env, &kinds[1]);
+        // Every shipped scene has shadows somewhere.
+        assert!(
+            settled > 0 || kinds[1].is_empty(),
+            "{name} frame {f}: no hint settled a shadow ray"
+        );
         for (kind, rays) in ["primary", "shadow", "reflection", "refraction"].iter().zip(&kinds) {
             let tag = format!("{name} frame {f} {kind}");
             // Lanes are masked at random, so counts differ between widths.
