@@ -5,6 +5,8 @@
 //!   primary, shadow, reflection and refraction rays of real frames, in
 //!   coherent packets and in shuffled ones that mix direction signs, at
 //!   every packet width.
+//! - Shadow rays with last-occluder hints (kept as the renderer keeps them,
+//!   and every leaf of the scene as the hint) answer as the plain queries.
 //! - `Backend::Kd` and `Backend::KdSingle` render the same bytes for every
 //!   shipped small scene, in both modes, on 1 and 2 threads and at every
 //!   packet width; the BART kitchen, museum and robots frames too, when the data is
