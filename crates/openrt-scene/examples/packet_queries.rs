@@ -1,14 +1,15 @@
 //! Ray queries alone, in a loop, for profiling (`perf record`): the
 //! middle frame of a scene at 640x480, its camera rays in the renderer's
 //! 16-lane pixel blocks (closest hit), or the shadow rays from their hits
-//! towards each light (`shadow`: any hit, a packet per block and light),
+//! towards each light (`shadow`: any hit, a packet per block and light,
+//! each light's last occluder tried first as in a frame),
 //! through the packet queries or one by one (`single`); no shading. The
 //! rays are those of `openrt bench`'s query table. Prints the best pass.
 //!
 //! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single]`
 use glam::Vec3;
 use openrt_accel::Ray;
-use openrt_core::first_hit_shadow_ray;
+use openrt_core::{OccluderHint, first_hit_shadow_ray};
 use openrt_scene::ScenePlayer;
 use std::time::Instant;
 fn main() {
@@ -43,6 +44,7 @@ fn main() {
             }
         }
     }
+    let nl = lights.len().max(1);
     let rays: Vec<Ray> = if shadow {
         shadows.iter().map(|s| s.0).collect()
     } else {
@@ -56,7 +58,14 @@ fn main() {
         let s = Instant::now();
         match (single, shadow) {
             (true, false) => hits += rays.iter().filter(|r| scene.intersect(r).is_some()).count(),
-            (true, true) => hits += rays.iter().filter(|r| scene.occluded(r)).count(),
+            (true, true) => {
+                let mut hints = vec![OccluderHint::new(); nl];
+                hits += rays
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, r)| scene.occluded_hinted(r, &mut hints[(k / 16) % nl]))
+                    .count();
+            }
             (false, false) => {
                 for c in rays.chunks_exact(16) {
                     let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
@@ -64,10 +73,13 @@ fn main() {
                 }
             }
             (false, true) => {
+                let mut hints = vec![OccluderHint::new(); nl];
                 for (k, c) in rays.chunks_exact(16).enumerate() {
                     let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
-                    let light = shadows[k * 16].1;
-                    hits += scene.occluded_packet_toward(&pk, 0xFFFF, light).count_ones() as usize;
+                    let j = k % nl;
+                    hits += scene
+                        .occluded_packet_toward_hinted(&pk, 0xFFFF, lights[j], &mut hints[j])
+                        .count_ones() as usize;
                 }
             }
         }
