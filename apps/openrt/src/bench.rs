@@ -705,9 +705,7 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
         // three builds are not timed.
         let owned = tris.clone();
         let t0 = Instant::now();
-        let a = pool
-            .install(|| KdTree::build_fast(owned))
-            .map_err(|e| e.to_string())?;
+        let a = pool.install(|| KdTree::build_fast(owned)).map_err(|e| e.to_string())?;
         fresh.push(t0.elapsed().as_secs_f64() * 1e3);
         let owned = tris.clone();
         let t0 = Instant::now();

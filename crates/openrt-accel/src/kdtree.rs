@@ -357,9 +357,18 @@ impl KdTree {
         inside
     }
 
-    /// [`KdTree::leaf_blocks`] for the `lanes` of a packet: the lanes blocked so.
+    /// [`KdTree::leaf_blocks`] for the `lanes` of a packet: the lanes blocked
+    /// so. `frustum`: the lanes' frustum when the caller has it (triangles
+    /// that no lane can reach are skipped).
     #[must_use]
-    pub fn leaf_blocks_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32, leaf: KdNode, margin: f32) -> u32 {
+    pub fn leaf_blocks_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        leaf: KdNode,
+        margin: f32,
+        frustum: Option<&Frustum>,
+    ) -> u32 {
         if !self.owns_leaf(leaf) || lanes == 0 {
             return 0;
         }
@@ -368,7 +377,7 @@ impl KdTree {
         };
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
         let mut got = 0u32;
-        self.leaf_packet(&pbr, rays, None, lanes, leaf, &mut closest, |h, _, _| {
+        self.leaf_packet(&pbr, rays, frustum, lanes, leaf, &mut closest, |h, _, _| {
             for l in lanes_of(h.hit) {
                 if well_inside(&rays[l], h.lane(l), margin) {
                     got |= 1 << l;
@@ -808,7 +817,7 @@ mod tests {
         ] {
             assert!(!tree.leaf_blocks(r, bogus, margin));
             let pk: [Ray; 4] = std::array::from_fn(|l| rays[l]);
-            assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, bogus, margin), 0);
+            assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, bogus, margin, None), 0);
         }
     }
 
@@ -840,7 +849,7 @@ mod tests {
             down(0.25, 0.25, 0.50005),
             down(0.3, 0.2, 1.0),
         ];
-        assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, leaf, m), 0b1001);
-        assert_eq!(tree.leaf_blocks_packet(&pk, 0b0110, leaf, m), 0);
+        assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, leaf, m, None), 0b1001);
+        assert_eq!(tree.leaf_blocks_packet(&pk, 0b0110, leaf, m, None), 0);
     }
 }

@@ -297,12 +297,27 @@ impl Scene {
         target: Vec3,
         hint: &mut OccluderHint,
     ) -> u32 {
-        let blocked = self.hint_blocks_packet(hint, rays, lanes);
+        // The lanes' frustum serves the hint when its instance has no
+        // transform, and then the walk too if the hint settled no lane.
+        let world_hint = hint
+            .0
+            .and_then(|(i, _)| self.instances.get(i as usize))
+            .is_some_and(|inst| inst.identity);
+        let first = if world_hint {
+            openrt_accel::Frustum::toward(rays, lanes, target)
+        } else {
+            None
+        };
+        let blocked = self.hint_blocks_packet(hint, rays, lanes, first.as_ref());
         let rest = lanes & !blocked;
         if rest == 0 {
             return blocked;
         }
-        let frustum = openrt_accel::Frustum::toward(rays, rest, target);
+        let frustum = if world_hint && blocked == 0 {
+            first
+        } else {
+            openrt_accel::Frustum::toward(rays, rest, target)
+        };
         let (more, found) = self.occluded_packet_in(rays, rest, frustum.as_ref());
         if found.is_some() {
             hint.0 = found;
@@ -310,8 +325,15 @@ impl Scene {
         blocked | more
     }
 
-    /// The lanes of a packet that [`Scene::hint_blocks`] settles.
-    fn hint_blocks_packet<const N: usize>(&self, hint: &OccluderHint, rays: &[Ray; N], lanes: u32) -> u32 {
+    /// The lanes of a packet that [`Scene::hint_blocks`] settles; `frustum`:
+    /// the lanes' world frustum, used for an instance without a transform.
+    fn hint_blocks_packet<const N: usize>(
+        &self,
+        hint: &OccluderHint,
+        rays: &[Ray; N],
+        lanes: u32,
+        frustum: Option<&openrt_accel::Frustum>,
+    ) -> u32 {
         let Some((i, leaf)) = hint.0 else {
             return 0;
         };
@@ -320,14 +342,14 @@ impl Scene {
         };
         let tree = &inst.geometry.tree;
         if inst.identity {
-            // The world rays are the rays the walk gives the instance.
-            return tree.leaf_blocks_packet(rays, lanes, leaf, HINT_MARGIN);
+            // The world rays (and frustum) are what the walk gives the instance.
+            return tree.leaf_blocks_packet(rays, lanes, leaf, HINT_MARGIN, frustum);
         }
         let mut local = *rays;
         for l in lanes_of(lanes) {
             local[l] = inst.ray_to_object(&rays[l], rays[l].t_max);
         }
-        tree.leaf_blocks_packet(&local, lanes, leaf, HINT_MARGIN)
+        tree.leaf_blocks_packet(&local, lanes, leaf, HINT_MARGIN, None)
     }
 
     /// The blocked lanes, and where one of them was blocked (instance, leaf).
