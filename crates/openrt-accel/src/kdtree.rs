@@ -337,12 +337,13 @@ impl KdTree {
         found
     }
 
-    /// `true` when a triangle of `leaf` (one of this tree's leaves, as
-    /// [`KdTree::occluder`] names them; anything else gives `false`) is hit
-    /// by `ray` at least `margin` inside the ray's interval (relative to its
-    /// length) and inside the triangle (each barycentric coordinate): a hit
-    /// that no rounding of the walk can lose, so [`KdTree::occluded`] is
-    /// `true` for that ray too. A finite interval is required.
+    /// `true` when a triangle of `leaf` (a leaf as [`KdTree::occluder`]
+    /// names them; a node that is not a leaf, or whose lists do not lie in
+    /// this tree's, gives `false`) is hit by `ray` at least `margin` inside
+    /// the ray's interval (relative to its length) and inside the triangle
+    /// (each barycentric coordinate): a hit that no rounding of the walk can
+    /// lose, so [`KdTree::occluded`] is `true` for that ray too. A finite
+    /// interval is required.
     #[must_use]
     pub fn leaf_blocks(&self, ray: &Ray, leaf: KdNode, margin: f32) -> bool {
         if !self.owns_leaf(leaf) {
@@ -389,7 +390,7 @@ impl KdTree {
         got
     }
 
-    /// `true` for a leaf of this tree (its lists in range).
+    /// `true` for a leaf node whose lists lie in this tree's.
     fn owns_leaf(&self, leaf: KdNode) -> bool {
         let (off, count) = (leaf.prim_offset() as usize, leaf.prim_count() as usize);
         leaf.is_leaf()

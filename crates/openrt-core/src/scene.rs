@@ -151,9 +151,10 @@ impl Scene {
         })
     }
 
-    /// [`Scene::occluded`], trying `hint`'s triangle first (what blocked an
-    /// earlier ray towards the same light) and keeping this ray's blocker
-    /// in it. The same answer whatever the hint holds (see [`OccluderHint`]).
+    /// [`Scene::occluded`], trying the triangles of `hint`'s leaf first
+    /// (where an earlier ray towards the same light was blocked) and keeping
+    /// where this ray was blocked in it. The same answer whatever the hint
+    /// holds (see [`OccluderHint`]).
     #[must_use]
     pub fn occluded_hinted(&self, ray: &Ray, hint: &mut OccluderHint) -> bool {
         if self.hint_blocks(hint, ray) {
@@ -286,9 +287,10 @@ impl Scene {
         self.occluded_packet_in(rays, lanes, frustum.as_ref()).0
     }
 
-    /// [`Scene::occluded_packet_toward`], trying `hint`'s triangle first on
-    /// every lane and keeping a blocker of this packet in it, as
-    /// [`Scene::occluded_hinted`]. The same answer whatever the hint holds.
+    /// [`Scene::occluded_packet_toward`], trying the triangles of `hint`'s
+    /// leaf first on every lane and keeping where a lane the walk answered
+    /// was blocked in it, as [`Scene::occluded_hinted`]. The same answer
+    /// whatever the hint holds.
     #[must_use]
     pub fn occluded_packet_toward_hinted<const N: usize>(
         &self,
@@ -362,7 +364,7 @@ impl Scene {
         let mut local = *rays;
         let mut found = None;
         let blocked = self.walk_packet(rays, lanes, frustum, |i, inst, active, closest| {
-            let (hit, prim) = if inst.identity {
+            let (hit, leaf) = if inst.identity {
                 // PERF: the world rays as they are: an any-hit walk never
                 // lowers a lane's bound, so `ray_to_object` would only copy
                 // them.
@@ -373,7 +375,7 @@ impl Scene {
                 }
                 inst.geometry.tree.occluder_packet_in(&local, active, None)
             };
-            if let Some(leaf) = prim {
+            if let Some(leaf) = leaf {
                 found = found.or(Some((i, leaf)));
             }
             hit
