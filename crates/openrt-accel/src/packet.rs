@@ -112,17 +112,20 @@ pub fn lanes_of(mut mask: u32) -> impl Iterator<Item = usize> {
 #[inline]
 #[must_use]
 pub fn sign_groups<const N: usize>(rays: &[Ray; N], mask: u32) -> ([u32; 8], u32) {
-    let mut groups = [0u32; 8];
-    let mut alone = 0u32;
-    for l in lanes_of(mask) {
-        let d = rays[l].dir;
-        if d.cmpeq(glam::Vec3::ZERO).any() {
-            alone |= 1 << l;
-        } else {
-            groups[d.is_negative_bitmask() as usize] |= 1 << l;
+    // PERF: one pass over all lanes into a mask per sign and one of zero
+    // components (no branch per lane), then the groups from the masks.
+    let (mut neg, mut zero) = ([0u32; 3], 0u32);
+    for (l, r) in rays.iter().enumerate() {
+        let d = r.dir.to_array();
+        for a in 0..3 {
+            neg[a] |= u32::from(d[a].is_sign_negative()) << l;
         }
+        zero |= u32::from(d[0] == 0.0 || d[1] == 0.0 || d[2] == 0.0) << l;
     }
-    (groups, alone)
+    let live = mask & !zero;
+    let side = |a: usize, s: usize| if s & (1 << a) != 0 { neg[a] } else { !neg[a] };
+    let groups = std::array::from_fn(|s| live & side(0, s) & side(1, s) & side(2, s));
+    (groups, mask & zero)
 }
 
 #[cfg(test)]
@@ -173,5 +176,35 @@ mod tests {
         assert_eq!(g[7], 0b0001_0000);
         assert_eq!(alone, 0b0010_1000);
         assert_eq!(g.iter().fold(alone, |a, m| a | m), 0b0111_1111);
+    }
+
+    #[test]
+    fn sign_groups_match_a_lane_by_lane_grouping() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(77);
+        let pick = |rng: &mut rand::rngs::SmallRng| match rng.random_range(0..8) {
+            0 => 0.0,
+            1 => -0.0,
+            2 => f32::NAN,
+            3 => -f32::NAN,
+            _ => rng.random_range(-1.0f32..1.0),
+        };
+        for _ in 0..500 {
+            let rays: [Ray; 16] = std::array::from_fn(|_| {
+                let d = Vec3::new(pick(&mut rng), pick(&mut rng), pick(&mut rng));
+                Ray::infinite(Vec3::ZERO, d)
+            });
+            let mask = rng.random::<u32>() & 0xFFFF;
+            let (mut want, mut want_alone) = ([0u32; 8], 0u32);
+            for l in lanes_of(mask) {
+                let d = rays[l].dir;
+                if d.cmpeq(Vec3::ZERO).any() {
+                    want_alone |= 1 << l;
+                } else {
+                    want[d.is_negative_bitmask() as usize] |= 1 << l;
+                }
+            }
+            assert_eq!(sign_groups(&rays, mask), (want, want_alone));
+        }
     }
 }
