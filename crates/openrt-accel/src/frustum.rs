@@ -77,7 +77,7 @@ impl Frustum {
         if lanes_of(lanes).any(|l| rays[l].origin.to_array().map(f32::to_bits) != o.to_array().map(f32::to_bits)) {
             return None;
         }
-        Self::from_apex(o, lanes_of(lanes).map(|l| rays[l].dir), true, 0.0)
+        Self::from_apex(o, rays, lanes, false, true, 0.0)
     }
 
     /// [`Frustum::toward`] with the target the lanes end at: the first
@@ -117,7 +117,7 @@ impl Frustum {
                 return None;
             }
         }
-        Self::from_apex(target, lanes_of(lanes).map(|l| -rays[l].dir), false, scale)
+        Self::from_apex(target, rays, lanes, true, false, scale)
     }
 
     /// `true` for the frustum of rays leaving one origin (primary rays),
@@ -127,30 +127,46 @@ impl Frustum {
         self.shared_origin
     }
 
-    /// The frustum with apex `o` around the directions `dirs` (seen from
-    /// `o`), which must point the same way along one axis.
-    fn from_apex(
+    /// The frustum with apex `o` around the directions of the `lanes` of
+    /// `rays` (negated with `negate`: seen from `o`), which must point the
+    /// same way along one axis.
+    // PERF: one pass over all lanes with selects (no early exit, no branch
+    // per lane): 3.5% of a kitchen primary-query profile as a lane iterator.
+    fn from_apex<const N: usize>(
         o: glam::Vec3,
-        mut dirs: impl Iterator<Item = glam::Vec3>,
+        rays: &[Ray; N],
+        lanes: u32,
+        negate: bool,
         shared_origin: bool,
         scale: f32,
     ) -> Option<Self> {
-        let first = dirs.next()?;
+        if lanes == 0 {
+            return None;
+        }
+        let sg = if negate { -1.0 } else { 1.0 };
+        let first = rays[lanes.trailing_zeros() as usize].dir * sg;
         let k = first.abs().max_position();
         let (a, b) = ((k + 1) % 3, (k + 2) % 3);
         let s = first[k].signum();
         let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) =
             (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
-        for d in std::iter::once(first).chain(dirs) {
+        let mut bad = false;
+        for (l, r) in rays.iter().enumerate() {
+            let on = lanes & (1 << l) != 0;
+            let d = r.dir.to_array();
+            let (dk, da, db) = (d[k] * sg, d[a] * sg, d[b] * sg);
             // NOTE: a zero or NaN component along `k` fails the test.
-            if d[k] * s <= 0.0 || !d.is_finite() {
-                return None;
-            }
-            let (u, v) = (d[a] / d[k], d[b] / d[k]);
-            lo_u = lo_u.min(u);
-            hi_u = hi_u.max(u);
-            lo_v = lo_v.min(v);
-            hi_v = hi_v.max(v);
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            let fails = !(dk * s > 0.0) | !dk.is_finite() | !da.is_finite() | !db.is_finite();
+            bad |= on & fails;
+            let (u, v) = (da / dk, db / dk);
+            lo_u = if on && u < lo_u { u } else { lo_u };
+            hi_u = if on && u > hi_u { u } else { hi_u };
+            lo_v = if on && v < lo_v { v } else { lo_v };
+            hi_v = if on && v > hi_v { v } else { hi_v };
+        }
+        if bad {
+            return None;
         }
         if !(lo_u.is_finite() && hi_u.is_finite() && lo_v.is_finite() && hi_v.is_finite() && o.is_finite()) {
             return None;
