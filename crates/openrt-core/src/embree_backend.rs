@@ -10,7 +10,7 @@ use std::sync::Arc;
 use openrt_accel::{BuilderKind, EmbreeTwoLevel, Ray, Triangle};
 
 use crate::tracer::Tracer;
-use crate::{CoreError, ObjectGeometry, Scene, SceneHit};
+use crate::{CoreError, ObjectGeometry, OccluderHint, Scene, SceneHit};
 
 /// The Embree scene kept in step with the committed frames: the renderer's
 /// Embree backends, and the bench's ray-kind figures.
@@ -123,15 +123,21 @@ impl Tracer for EmbreeScene {
         EmbreeScene::intersect(self, ray)
     }
 
-    fn occluded(&self, ray: &Ray) -> bool {
-        EmbreeScene::occluded(self, ray)
-    }
-
     fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<SceneHit>; N] {
         EmbreeScene::intersect_packet(self, rays, lanes)
     }
 
-    fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
+    fn occluded_hinted(&self, ray: &Ray, _: &mut OccluderHint) -> bool {
+        EmbreeScene::occluded(self, ray)
+    }
+
+    fn occluded_packet_toward_hinted<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        _: glam::Vec3,
+        _: &mut OccluderHint,
+    ) -> u32 {
         EmbreeScene::occluded_packet(self, rays, lanes)
     }
 }
