@@ -131,6 +131,7 @@ pub(crate) fn build_binned_sah(
         bounds,
         depth: b.depth_reached,
         cost: None,
+        valid: n,
     })
 }
 

@@ -14,7 +14,7 @@
 use crate::SahParams;
 use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, stitch, too_many_nodes};
 use crate::sah_build::{BuiltTree, default_max_depth};
-use crate::{Aabb, AccelError, Triangle};
+use crate::{Aabb, AccelError, Triangle, is_valid_triangle};
 
 /// Parameters of the fast builder.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,23 +56,31 @@ pub const DEFAULT_REFIT_COST_LIMIT: f64 = 1.25;
 /// every box), and the builder's decisions on clipped boxes are the same
 /// on the boxes themselves (a partition's plane lies inside the cell, the
 /// bins clamp to it; tested against clipping at every level), so a
-/// partition moves 4 bytes per item and reads 8.
+/// partition moves 4 bytes per item and reads 8 (side by side: one load).
 pub(crate) struct Boxes {
-    min: [Vec<f32>; 3],
-    max: [Vec<f32>; 3],
+    /// Per axis, every primitive's lowest and highest coordinate.
+    spans: [Vec<[f32; 2]>; 3],
 }
 
 impl Boxes {
     /// The lowest and highest coordinate on `axis` of every primitive.
     #[inline]
-    fn axis(&self, axis: usize) -> (&[f32], &[f32]) {
-        (&self.min[axis], &self.max[axis])
+    fn axis(&self, axis: usize) -> &[[f32; 2]] {
+        &self.spans[axis]
+    }
+
+    /// The spans of `boxes`, primitive `i` having box `boxes[i]`.
+    #[cfg(test)]
+    fn of(boxes: &[Aabb]) -> Self {
+        Self {
+            spans: std::array::from_fn(|a| boxes.iter().map(|b| [b.min[a], b.max[a]]).collect()),
+        }
     }
 }
 
-/// The ids of the valid triangles, every triangle's box, and the box
-/// around the valid ones.
-pub(crate) fn items_of(tris: &[Triangle], valid: &[bool]) -> Result<(Vec<u32>, Boxes, Aabb), AccelError> {
+/// The ids of the valid triangles ([`is_valid_triangle`], decided in the
+/// same pass), every triangle's box, and the box around the valid ones.
+pub(crate) fn items_of(tris: &[Triangle]) -> Result<(Vec<u32>, Boxes, Aabb), AccelError> {
     if tris.len() > MAX_FIELD as usize {
         return Err(AccelError::TooManyPrimitives {
             count: tris.len(),
@@ -80,18 +88,16 @@ pub(crate) fn items_of(tris: &[Triangle], valid: &[bool]) -> Result<(Vec<u32>, B
         });
     }
     let mut boxes = Boxes {
-        min: std::array::from_fn(|_| Vec::with_capacity(tris.len())),
-        max: std::array::from_fn(|_| Vec::with_capacity(tris.len())),
+        spans: std::array::from_fn(|_| Vec::with_capacity(tris.len())),
     };
     let mut ids = Vec::with_capacity(tris.len());
     let mut bounds = Aabb::EMPTY;
     for (i, t) in tris.iter().enumerate() {
         let b = Aabb::from_points(t);
         for a in 0..3 {
-            boxes.min[a].push(b.min[a]);
-            boxes.max[a].push(b.max[a]);
+            boxes.spans[a].push([b.min[a], b.max[a]]);
         }
-        if valid[i] {
+        if is_valid_triangle(t) {
             ids.push(i as u32);
             bounds = bounds.union(b);
         }
@@ -130,15 +136,16 @@ impl Default for FastParams {
     }
 }
 
-pub(crate) fn build_fast(tris: &[Triangle], valid: &[bool], params: &FastParams) -> Result<BuiltTree, AccelError> {
-    let (items, boxes, bounds) = items_of(tris, valid)?;
-    let mut b = Fast::new(params, &boxes, items.len());
+pub(crate) fn build_fast(tris: &[Triangle], params: &FastParams) -> Result<BuiltTree, AccelError> {
+    let (items, boxes, bounds) = items_of(tris)?;
+    let valid = items.len();
+    let mut b = Fast::new(params, &boxes, valid);
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
         b.node_parallel(bounds, items, 0, parallel_levels(params))?;
     }
-    Ok(b.finish(bounds))
+    Ok(b.finish(bounds, valid))
 }
 
 /// A planned split with its children.
@@ -193,7 +200,8 @@ impl<'b> Fast<'b> {
         }
     }
 
-    pub(crate) fn finish(self, bounds: Aabb) -> BuiltTree {
+    /// The built tree, over `valid` valid triangles bounded by `bounds`.
+    pub(crate) fn finish(self, bounds: Aabb, valid: usize) -> BuiltTree {
         let root = f64::from(bounds.surface_area());
         BuiltTree {
             nodes: self.nodes,
@@ -205,6 +213,7 @@ impl<'b> Fast<'b> {
             } else {
                 0.0
             }),
+            valid,
         }
     }
 
@@ -254,10 +263,11 @@ impl<'b> Fast<'b> {
         // below the cell to the first bin (a negative float converts to 0)
         // and what lies above it to the last, where its clipped coordinate
         // goes (tested).
-        let (mins, maxs) = self.boxes.axis(axis);
+        let spans = self.boxes.axis(axis);
         for &id in items {
-            starts[bin(mins[id as usize])] += 1;
-            ends[bin(maxs[id as usize])] += 1;
+            let [start, end] = spans[id as usize];
+            starts[bin(start)] += 1;
+            ends[bin(end)] += 1;
         }
         let ext3 = cell.extent();
         let (k1, k2) = ((axis + 1) % 3, (axis + 2) % 3);
@@ -304,7 +314,7 @@ impl<'b> Fast<'b> {
         lcell.max[axis] = split;
         let mut rcell = *cell;
         rcell.min[axis] = split;
-        let (mins, maxs) = self.boxes.axis(axis);
+        let spans = self.boxes.axis(axis);
         // PERF: branch-free: every id is written to both lists and each
         // list's end moves past it when it belongs there (the side of a
         // triangle is unpredictable; with 4-byte ids the extra write costs
@@ -316,7 +326,7 @@ impl<'b> Fast<'b> {
         let (mut w, mut r, mut both) = (0usize, 0usize, 0usize);
         for k in 0..n {
             let id = items[k];
-            let (lo, hi) = (mins[id as usize], maxs[id as usize]);
+            let [lo, hi] = spans[id as usize];
             let left = lo < split || hi <= split;
             let above = hi > split;
             items[w] = id;
@@ -497,10 +507,7 @@ mod tests {
             } else {
                 rng.random_range(1.5..8.5)
             };
-            let boxes = Boxes {
-                min: std::array::from_fn(|a| items.iter().map(|i| i.1.min[a]).collect()),
-                max: std::array::from_fn(|a| items.iter().map(|i| i.1.max[a]).collect()),
-            };
+            let boxes = Boxes::of(&items.iter().map(|i| i.1).collect::<Vec<_>>());
             let b = Fast::new(&FastParams::default(), &boxes, n);
             let (l, r, both) = plain(&cell, &items, axis, split);
             match b.partition(&cell, ids(&items), axis, split) {
@@ -524,8 +531,7 @@ mod tests {
         // A fast tree's leaves, rebuilt from the boxes clipped level by
         // level (the plain partition above), hold the same ids.
         let tris = crate::meshgen::bumpy_sphere(3_000, 3, 0.4);
-        let valid = vec![true; tris.len()];
-        let (items, boxes, bounds) = items_of(&tris, &valid).unwrap();
+        let (items, boxes, bounds) = items_of(&tris).unwrap();
         let fast = Fast::new(&FastParams::default(), &boxes, items.len());
         let mut clipped: Vec<(u32, Aabb)> = items
             .iter()
@@ -550,16 +556,11 @@ mod tests {
             };
             // Binning the clipped boxes directly picks the same plane.
             let direct = {
-                let mut b2 = Boxes {
-                    min: std::array::from_fn(|_| vec![0.0; tris.len()]),
-                    max: std::array::from_fn(|_| vec![0.0; tris.len()]),
-                };
+                let mut all = vec![Aabb::EMPTY; tris.len()];
                 for &(id, bx) in &clipped {
-                    for a in 0..3 {
-                        b2.min[a][id as usize] = bx.min[a];
-                        b2.max[a][id as usize] = bx.max[a];
-                    }
+                    all[id as usize] = bx;
                 }
+                let b2 = Boxes::of(&all);
                 Fast::new(&FastParams::default(), &b2, ids_now.len()).plan(&cell, &ids_now, depth + 1)
             };
             assert_eq!(fast.plan(&cell, &ids_now, depth + 1), direct);

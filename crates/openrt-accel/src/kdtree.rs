@@ -148,7 +148,7 @@ impl KdTree {
         let start = Instant::now();
         let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
         let built = build_sah(&tris, &valid, params)?;
-        Self::finish(tris, &valid, built, BuilderKind::Sah, start)
+        Self::finish(tris, built, BuilderKind::Sah, start)
     }
 
     /// Builds a tree with the cheap builder for unstructured motion
@@ -160,9 +160,8 @@ impl KdTree {
     /// Builds a tree with the cheap builder and the given parameters.
     pub fn build_fast_with(tris: Vec<Triangle>, params: &FastParams) -> Result<Self, AccelError> {
         let start = Instant::now();
-        let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
-        let built = build_fast(&tris, &valid, params)?;
-        Self::finish(tris, &valid, built, BuilderKind::Fast, start)
+        let built = build_fast(&tris, params)?;
+        Self::finish(tris, built, BuilderKind::Fast, start)
     }
 
     /// The tree of `tris` (the triangles of `prev`'s object after they
@@ -176,15 +175,14 @@ impl KdTree {
         if prev.stats.builder != BuilderKind::Fast {
             return Self::build_fast_with(tris, params);
         }
-        let valid: Vec<bool> = tris.iter().map(is_valid_triangle).collect();
-        let built = crate::refit::refit(&prev.nodes, &tris, &valid, params)?;
+        let built = crate::refit::refit(&prev.nodes, &tris, params)?;
         let cost = built.cost.unwrap_or(f64::INFINITY);
         if cost > prev.stats.base_cost * params.refit_cost_limit {
             let mut tree = Self::build_fast_with(tris, params)?;
             tree.stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
             return Ok(tree);
         }
-        let mut tree = Self::finish(tris, &valid, built, BuilderKind::Fast, start)?;
+        let mut tree = Self::finish(tris, built, BuilderKind::Fast, start)?;
         tree.stats.refitted = true;
         tree.stats.base_cost = prev.stats.base_cost;
         Ok(tree)
@@ -200,7 +198,6 @@ impl KdTree {
 
     pub(crate) fn finish(
         tris: Vec<Triangle>,
-        valid: &[bool],
         built: BuiltTree,
         builder: BuilderKind,
         start: Instant,
@@ -211,6 +208,7 @@ impl KdTree {
             bounds,
             depth,
             cost,
+            valid,
         } = built;
         let references = prim_ids.len();
         let (prim_ids, blocks) = pack_leaves(&mut nodes, &prim_ids, &tris)?;
@@ -220,7 +218,7 @@ impl KdTree {
         let stats = TreeStats {
             builder,
             triangles: tris.len(),
-            dropped: valid.iter().filter(|&&v| !v).count(),
+            dropped: tris.len() - valid,
             nodes: nodes.len(),
             leaves,
             empty_leaves,

@@ -23,21 +23,17 @@ use crate::sah_build::BuiltTree;
 use crate::{Aabb, AccelError, Triangle};
 
 /// The tree of `tris` on the planes of `old` (an elided node array).
-pub(crate) fn refit(
-    old: &[KdNode],
-    tris: &[Triangle],
-    valid: &[bool],
-    params: &FastParams,
-) -> Result<BuiltTree, AccelError> {
-    let (items, boxes, bounds) = items_of(tris, valid)?;
-    let mut b = Fast::new(params, &boxes, items.len());
+pub(crate) fn refit(old: &[KdNode], tris: &[Triangle], params: &FastParams) -> Result<BuiltTree, AccelError> {
+    let (items, boxes, bounds) = items_of(tris)?;
+    let valid = items.len();
+    let mut b = Fast::new(params, &boxes, valid);
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
         let root = (!old.is_empty()).then_some(0);
         b.refit_node(old, root, bounds, items, 0, parallel_levels(params))?;
     }
-    Ok(b.finish(bounds))
+    Ok(b.finish(bounds, valid))
 }
 
 impl Fast<'_> {

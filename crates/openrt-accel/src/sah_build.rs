@@ -122,6 +122,8 @@ pub(crate) struct BuiltTree {
     /// The tree's SAH cost as the fast builder estimates it while it
     /// builds (`None`: not estimated).
     pub cost: Option<f64>,
+    /// How many of the triangles are valid (the rest are left out).
+    pub valid: usize,
 }
 
 /// Builds an SAH kd-tree over the valid triangles (`valid[i]`).
@@ -177,6 +179,7 @@ pub(crate) fn build_sah(tris: &[Triangle], valid: &[bool], params: &SahParams) -
         bounds,
         depth: b.depth_reached,
         cost: None,
+        valid: n_valid,
     })
 }
 
