@@ -14,7 +14,7 @@ use crate::traverse::traverse;
 use crate::traverse_packet::traverse_packet;
 use crate::triangle::is_valid_triangle;
 use crate::triangle_packet::{LaneHits, PacketBlockRay};
-use crate::{Aabb, AccelError, Hit, Ray, Triangle};
+use crate::{Aabb, AccelError, Hit, PacketBoxes, Ray, Triangle};
 
 /// Largest tree validated automatically after its build in debug-assertion builds.
 #[cfg(debug_assertions)]
@@ -414,13 +414,15 @@ impl KdTree {
         closest: &mut [f32; N],
         hits: &mut [Option<Hit>; N],
     ) -> u32 {
-        self.intersect_packet_in(rays, lanes, closest, hits, None)
+        self.intersect_packet_in(rays, lanes, closest, hits, None, None)
     }
 
     /// [`KdTree::intersect_packet`] with the packet's frustum when the
     /// caller has it (one of the rays of a larger mask, such as the world
     /// frustum of a packet that an instance without a transform sees as
-    /// it is); `None`: made from the rays when a leaf first needs it.
+    /// it is); `None`: made from the rays when a leaf first needs it. Likewise
+    /// `laid_out`: `rays` laid out lane by lane, which clips them to the
+    /// tree's box without reading them again ([`PacketBoxes::clip`]).
     pub fn intersect_packet_in<const N: usize>(
         &self,
         rays: &[Ray; N],
@@ -428,8 +430,12 @@ impl KdTree {
         closest: &mut [f32; N],
         hits: &mut [Option<Hit>; N],
         frustum: Option<&Frustum>,
+        laid_out: Option<&PacketBoxes<N>>,
     ) -> u32 {
-        let (t0, t1, live) = self.bounds.clip_lanes(rays, lanes, closest);
+        let (t0, t1, live) = match laid_out {
+            Some(b) => b.clip(&self.bounds, lanes, closest),
+            None => self.bounds.clip_lanes(rays, lanes, closest),
+        };
         if live == 0 {
             return 0;
         }
@@ -482,7 +488,7 @@ impl KdTree {
     /// has it (see [`KdTree::intersect_packet_in`]).
     #[must_use]
     pub fn occluded_packet_in<const N: usize>(&self, rays: &[Ray; N], lanes: u32, frustum: Option<&Frustum>) -> u32 {
-        self.occluder_packet_in(rays, lanes, frustum).0
+        self.occluder_packet_in(rays, lanes, frustum, None).0
     }
 
     /// [`KdTree::occluded_packet_in`], also naming the leaf where one of
@@ -493,9 +499,13 @@ impl KdTree {
         rays: &[Ray; N],
         lanes: u32,
         frustum: Option<&Frustum>,
+        laid_out: Option<&PacketBoxes<N>>,
     ) -> (u32, Option<KdNode>) {
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
-        let (t0, t1, live) = self.bounds.clip_lanes(rays, lanes, &closest);
+        let (t0, t1, live) = match laid_out {
+            Some(b) => b.clip(&self.bounds, lanes, &closest),
+            None => self.bounds.clip_lanes(rays, lanes, &closest),
+        };
         if live == 0 {
             return (0, None);
         }

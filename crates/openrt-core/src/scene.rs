@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
-use openrt_accel::{InstanceBsp, Ray, Triangle, lanes_of, traverse, traverse_packet};
+use openrt_accel::{InstanceBsp, PacketBoxes, Ray, Triangle, lanes_of, traverse, traverse_packet};
 
 use crate::instance::InstanceRecord;
 use crate::occluder_hint::{HINT_MARGIN, OccluderHint};
@@ -234,7 +234,7 @@ impl Scene {
         let mut local = *rays;
         let mut hits = [None; N];
         let frustum = openrt_accel::Frustum::new(rays, lanes);
-        self.walk_packet(rays, lanes, frustum.as_ref(), |i, inst, active, closest| {
+        self.walk_packet(rays, lanes, frustum.as_ref(), |i, inst, active, closest, laid_out| {
             // An instance without a transform sees the world frustum as it is.
             let f = frustum.as_ref().filter(|_| inst.identity);
             let found = if f.is_some() {
@@ -243,14 +243,14 @@ impl Scene {
                 // `with_interval`), so no copy is needed.
                 inst.geometry
                     .tree
-                    .intersect_packet_in(rays, active, closest, &mut hits, f)
+                    .intersect_packet_in(rays, active, closest, &mut hits, f, Some(laid_out))
             } else {
                 for l in lanes_of(active) {
                     local[l] = inst.ray_to_object(&rays[l], closest[l]);
                 }
                 inst.geometry
                     .tree
-                    .intersect_packet_in(&local, active, closest, &mut hits, f)
+                    .intersect_packet_in(&local, active, closest, &mut hits, f, None)
             };
             for l in lanes_of(found) {
                 if let Some(h) = hits[l] {
@@ -363,17 +363,19 @@ impl Scene {
     ) -> (u32, Option<(u32, openrt_accel::KdNode)>) {
         let mut local = *rays;
         let mut found = None;
-        let blocked = self.walk_packet(rays, lanes, frustum, |i, inst, active, closest| {
+        let blocked = self.walk_packet(rays, lanes, frustum, |i, inst, active, closest, laid_out| {
             let (hit, leaf) = if inst.identity {
                 // PERF: the world rays as they are: an any-hit walk never
                 // lowers a lane's bound, so `ray_to_object` would only copy
                 // them.
-                inst.geometry.tree.occluder_packet_in(rays, active, frustum)
+                inst.geometry
+                    .tree
+                    .occluder_packet_in(rays, active, frustum, Some(laid_out))
             } else {
                 for l in lanes_of(active) {
                     local[l] = inst.ray_to_object(&rays[l], closest[l]);
                 }
-                inst.geometry.tree.occluder_packet_in(&local, active, None)
+                inst.geometry.tree.occluder_packet_in(&local, active, None, None)
             };
             if let Some(leaf) = leaf {
                 found = found.or(Some((i, leaf)));
@@ -399,10 +401,15 @@ impl Scene {
         mut test: F,
     ) -> u32
     where
-        F: FnMut(u32, &InstanceRecord, u32, &mut [f32; N]) -> u32,
+        F: FnMut(u32, &InstanceRecord, u32, &mut [f32; N], &PacketBoxes<N>) -> u32,
     {
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
-        let (t0, t1, live) = self.bsp.bounds().clip_lanes(rays, lanes, &closest);
+        // The lanes that can reach an instance's world box are tested for
+        // the whole packet before any lane is moved to object space; the
+        // same layout clips the lanes to the scene box and to the trees of
+        // instances without a transform.
+        let boxes = PacketBoxes::new(rays, lanes);
+        let (t0, t1, live) = boxes.clip(&self.bsp.bounds(), lanes, &closest);
         if live == 0 {
             return 0;
         }
@@ -411,9 +418,6 @@ impl Scene {
         // lane that meets an instance again (after its slot was taken)
         // finds the same hits, none of them closer.
         let mut mailbox = [(u32::MAX, 0u32); MAILBOX];
-        // The lanes that can reach an instance's world box, tested for the
-        // whole packet before any lane is moved to object space.
-        let boxes = openrt_accel::PacketBoxes::new(rays, live);
         traverse_packet(
             self.bsp.nodes(),
             rays,
@@ -442,7 +446,7 @@ impl Scene {
                         boxes.reaching(&inst.world_bounds, fresh, closest)
                     };
                     if fresh != 0 {
-                        done |= test(i, inst, fresh, closest) & fresh;
+                        done |= test(i, inst, fresh, closest, &boxes) & fresh;
                         if done == active {
                             break;
                         }
