@@ -40,8 +40,9 @@ pub struct FastParams {
     pub refit_cost_limit: f64,
 }
 
-/// Smallest node built in parallel.
-pub(crate) const PARALLEL_MIN: usize = 4096;
+/// Smallest node built in parallel: fast builds and refits of fewer
+/// primitives run on one thread (see [`BspBuilder::install_build`](crate::BspBuilder::install_build)).
+pub const PARALLEL_MIN: usize = 4096;
 
 /// Default [`FastParams::refit_cost_limit`]: a refitted tree may cost 25%
 /// more than the last full build before it is rebuilt (measured on the
@@ -108,8 +109,10 @@ pub(crate) fn items_of(tris: &[Triangle]) -> Result<(Vec<u32>, Boxes, Aabb), Acc
 /// Levels of a tree built on two threads each: one per doubling of the
 /// threads of the rayon pool the build runs in (the commit lends it its
 /// pool, so no thread is spawned per build).
-pub(crate) fn parallel_levels(params: &FastParams) -> u32 {
-    if params.parallel {
+/// None for fewer than [`PARALLEL_MIN`] items: such a build never asks
+/// rayon for its threads (it may run outside any pool).
+pub(crate) fn parallel_levels(params: &FastParams, items: usize) -> u32 {
+    if params.parallel && items >= PARALLEL_MIN {
         rayon::current_num_threads().next_power_of_two().trailing_zeros()
     } else {
         0
@@ -143,7 +146,8 @@ pub(crate) fn build_fast(tris: &[Triangle], params: &FastParams) -> Result<Built
     if items.is_empty() {
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
-        b.node_parallel(bounds, items, 0, parallel_levels(params))?;
+        let levels = parallel_levels(params, items.len());
+        b.node_parallel(bounds, items, 0, levels)?;
     }
     Ok(b.finish(bounds, valid))
 }

@@ -61,7 +61,7 @@ pub use aabb::Aabb;
 #[cfg(feature = "embree")]
 pub use embree_peer::{EmbreeMesh, EmbreeTwoLevel};
 pub use error::AccelError;
-pub use fast_build::{DEFAULT_REFIT_COST_LIMIT, FastParams};
+pub use fast_build::{DEFAULT_REFIT_COST_LIMIT, FastParams, PARALLEL_MIN};
 pub use frustum::{FRUSTUM_MARGIN, Frustum, NO_FRUSTUM_ENV};
 pub use hit::Hit;
 pub use kdnode::{KdNode, MAX_DEPTH};

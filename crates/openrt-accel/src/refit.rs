@@ -31,7 +31,8 @@ pub(crate) fn refit(old: &[KdNode], tris: &[Triangle], params: &FastParams) -> R
         b.nodes.push(KdNode::leaf(0, 0));
     } else {
         let root = (!old.is_empty()).then_some(0);
-        b.refit_node(old, root, bounds, items, 0, parallel_levels(params))?;
+        let levels = parallel_levels(params, items.len());
+        b.refit_node(old, root, bounds, items, 0, levels)?;
     }
     Ok(b.finish(bounds, valid))
 }

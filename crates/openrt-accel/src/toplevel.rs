@@ -22,7 +22,7 @@
 
 use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, shift_into, too_many_nodes};
 use crate::sah_build::default_max_depth;
-use crate::{Aabb, AccelError};
+use crate::{Aabb, AccelError, BuilderKind, PARALLEL_MIN};
 
 /// A kd-tree over instance world boxes.
 #[derive(Clone, Debug, Default)]
@@ -282,6 +282,20 @@ impl BspBuilder {
         match &self.pool {
             Some(pool) => pool.install(f),
             None => f(),
+        }
+    }
+
+    /// Runs `f`, the build of an object of `triangles` triangles with
+    /// `builder`: on the builder's threads when the build can use more than
+    /// one (a fast build or refit of at least [`PARALLEL_MIN`] triangles),
+    /// otherwise on the calling thread, which waits for it either way.
+    /// The same tree; handing a one-thread build to the pool would cost a
+    /// wake-up there and another here (measured in docs/PERFORMANCE.md).
+    pub fn install_build<R: Send>(&self, builder: BuilderKind, triangles: usize, f: impl FnOnce() -> R + Send) -> R {
+        if builder == BuilderKind::Fast && triangles >= PARALLEL_MIN {
+            self.install(f)
+        } else {
+            f()
         }
     }
 

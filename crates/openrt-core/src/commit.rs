@@ -207,11 +207,14 @@ impl Context {
                 // NOTE: the definition stays pending until phase 2, so the
                 // builder gets a copy (a memcpy, ~1% of a fast build).
                 let tris = mesh.triangles.clone();
+                let n = tris.len();
                 let fail = self.fail_builds.as_mut();
                 let prev = slot.geometry.as_ref().filter(|_| self.refit).map(|g| &g.tree);
+                // A build that can use the pool's threads runs on them; a
+                // smaller one runs here (the same tree, without waking the pool).
                 let tree = self
                     .bsp_builder
-                    .install(|| build_tree(tris, builder, prev, fail))
+                    .install_build(builder, n, || build_tree(tris, builder, prev, fail))
                     .map_err(|source| CoreError::Accel { call: "commit", source })?;
                 stats.builds.push(BuildRecord {
                     object: id,
