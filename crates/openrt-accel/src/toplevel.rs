@@ -851,6 +851,25 @@ mod tests {
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
+    /// Builds go to the pool only when they can use its threads.
+    #[test]
+    fn only_builds_that_can_use_threads_are_handed_to_the_pool() {
+        let pool = BspBuilder::new(2);
+        // A pool thread has an index; the calling thread (not a worker) none.
+        let on_pool = |builder, n| pool.install_build(builder, n, || rayon::current_thread_index().is_some());
+        assert!(!on_pool(BuilderKind::Fast, PARALLEL_MIN - 1));
+        assert!(on_pool(BuilderKind::Fast, PARALLEL_MIN));
+        assert!(!on_pool(BuilderKind::Sah, 10 * PARALLEL_MIN));
+        // Below the threshold a fast build joins nothing, so it runs the same
+        // outside any pool.
+        let tris = crate::meshgen::bumpy_sphere(PARALLEL_MIN / 2, 4, 0.3);
+        let inline = pool.install_build(BuilderKind::Fast, tris.len(), || {
+            crate::KdTree::build_fast(tris.clone())
+        });
+        let pooled = pool.install(|| crate::KdTree::build_fast(tris.clone()));
+        assert_eq!(inline.unwrap().nodes(), pooled.unwrap().nodes());
+    }
+
     /// An instance index survives the trip through a float lane, and the
     /// lane is a normal float (no denormal arithmetic in the SIMD pass).
     #[test]
