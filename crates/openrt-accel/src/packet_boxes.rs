@@ -191,6 +191,21 @@ mod tests {
     use super::*;
     use crate::meshgen;
 
+    /// A box of random centre and half-sizes inside the test world.
+    fn random_box(rng: &mut SmallRng) -> Aabb {
+        let c = Vec3::new(
+            rng.random_range(-3.0..3.0),
+            rng.random_range(-3.0..3.0),
+            rng.random_range(-3.0..3.0),
+        );
+        let h = Vec3::new(
+            rng.random_range(0.0..1.0),
+            rng.random_range(0.0..1.0),
+            rng.random_range(0.0..0.5),
+        );
+        Aabb::new(c - h, c + h)
+    }
+
     /// The laid-out clip is the lane-by-lane clip, bit for bit: random and
     /// axis-parallel lanes (0.0 and -0.0), invalid rays, NaN and infinite
     /// bounds, origins on the box's faces, boxes flat on an axis.
@@ -200,17 +215,8 @@ mod tests {
         let world = Aabb::new(Vec3::splat(-4.0), Vec3::splat(4.0));
         for round in 0..2000 {
             let mut rays: [Ray; 16] = std::array::from_fn(|_| meshgen::random_rays(1, rng.random(), world)[0]);
-            let c = Vec3::new(
-                rng.random_range(-3.0..3.0),
-                rng.random_range(-3.0..3.0),
-                rng.random_range(-3.0..3.0),
-            );
-            let h = Vec3::new(
-                rng.random_range(0.0..1.0),
-                rng.random_range(0.0..1.0),
-                rng.random_range(0.0..0.5),
-            );
-            let mut b = Aabb::new(c - h, c + h);
+            let mut b = random_box(&mut rng);
+            let c = b.center();
             match round % 8 {
                 0 => {
                     rays[0] = Ray::new(rays[0].origin, Vec3::new(0.0, -0.0, 1.0), 0.0, f32::INFINITY);
@@ -256,17 +262,7 @@ mod tests {
                 t_max[2] = f32::NAN;
             }
             let pb = PacketBoxes::new(&rays, u32::from(u16::MAX));
-            let c = Vec3::new(
-                rng.random_range(-3.0..3.0),
-                rng.random_range(-3.0..3.0),
-                rng.random_range(-3.0..3.0),
-            );
-            let h = Vec3::new(
-                rng.random_range(0.0..1.0),
-                rng.random_range(0.0..1.0),
-                rng.random_range(0.0..0.5),
-            );
-            let b = Aabb::new(c - h, c + h);
+            let b = random_box(&mut rng);
             let lanes = rng.random::<u32>() & u32::from(u16::MAX);
             let got = pb.reaching(&b, lanes, &t_max);
             assert_eq!(got & !lanes, 0, "only lanes of the mask");
