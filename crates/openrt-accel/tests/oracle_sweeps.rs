@@ -179,27 +179,34 @@ fn fast_builder_trees_match_the_oracle() {
 fn the_parallel_fast_build_equals_the_serial_one() {
     let b = Aabb::new(Vec3::splat(-2.0), Vec3::splat(2.0));
     let tris = meshgen::random_soup(20_000, 11, b, 0.05);
-    let par = KdTree::build_fast_with(
-        tris.clone(),
-        &openrt_accel::FastParams {
-            parallel: true,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let ser = KdTree::build_fast_with(
-        tris,
-        &openrt_accel::FastParams {
-            parallel: false,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    assert_eq!(par.nodes(), ser.nodes());
-    for n in par.nodes() {
-        assert_eq!(par.leaf_primitives(*n), ser.leaf_primitives(*n));
-    }
-    assert_eq!(par.stats().depth, ser.stats().depth);
+    let moved: Vec<_> = tris.iter().map(|t| t.map(|v| v * 1.01 + Vec3::X * 0.02)).collect();
+    // In a pool of four threads the top levels are built on several; on
+    // this thread (no pool) and with `parallel: false`, on one.
+    let pool = openrt_accel::BspBuilder::new(4);
+    let par_params = openrt_accel::FastParams::default();
+    let ser_params = openrt_accel::FastParams {
+        parallel: false,
+        ..Default::default()
+    };
+    let same = |a: &KdTree, b: &KdTree| {
+        assert_eq!(a.nodes(), b.nodes());
+        for n in a.nodes() {
+            assert_eq!(a.leaf_primitives(*n), b.leaf_primitives(*n));
+        }
+        assert_eq!(a.stats().depth, b.stats().depth);
+    };
+    let (par, par_refit) = pool.install(|| {
+        let t = KdTree::build_fast_with(tris.clone(), &par_params).unwrap();
+        let r = KdTree::refit_fast(&t, moved.clone(), &par_params).unwrap();
+        (t, r)
+    });
+    let ser = KdTree::build_fast_with(tris.clone(), &ser_params).unwrap();
+    let outside = KdTree::build_fast_with(tris, &par_params).unwrap();
+    same(&par, &ser);
+    same(&par, &outside);
+    let ser_refit = KdTree::refit_fast(&ser, moved, &ser_params).unwrap();
+    assert!(par_refit.stats().refitted);
+    same(&par_refit, &ser_refit);
 }
 
 /// Every non-empty leaf of `tree` (by list offset) with its cell.
