@@ -80,6 +80,7 @@ mod error;
 mod ids;
 mod instance;
 mod light;
+mod light_quad;
 mod limits;
 mod material;
 mod matrix_stack;

@@ -11,6 +11,7 @@ use openrt_accel::{PacketWidth, Ray, lanes_of};
 use parking_lot::Mutex;
 
 use crate::camera::CameraRays;
+use crate::light_quad::light_quads;
 use crate::shade::{Cone, Shader};
 use crate::tracer::Tracer;
 use crate::{
@@ -446,6 +447,7 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) -> Vec<TileResult> {
         filter: job.settings.texture_filter,
         counts: RayCounts::default(),
         occluders: vec![OccluderHint::new(); job.env.lights.len()],
+        light_quads: light_quads(&job.env.lights),
     };
     let spp = job.settings.spp.max(1);
     // Each sample's cone covers its share of the pixel.

@@ -3,6 +3,7 @@
 use glam::Vec3;
 use openrt_accel::{Ray, lanes_of, sign_groups};
 
+use crate::light_quad::{LightQuad, light_terms};
 use crate::tracer::Tracer;
 use crate::{Environment, OccluderHint, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
@@ -127,6 +128,8 @@ pub(crate) struct Shader<'a, T: Tracer = Scene> {
     pub counts: RayCounts,
     /// The last occluder of each light (shadow cache), emptied per tile.
     pub occluders: Vec<OccluderHint>,
+    /// The lights four to a register, for the light loop.
+    pub light_quads: Vec<LightQuad>,
 }
 
 /// A ray cone (Akenine-Möller et al., "Texture Level of Detail Strategies
@@ -311,17 +314,22 @@ impl<T: Tracer> Shader<'_, T> {
         let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
         let mut color = self.env.ambient * ka;
         let view = -d;
-        for (j, light) in self.env.lights.iter().enumerate() {
-            let Some(l) = lit_side(prep, light) else { continue };
-            if self.mode == RenderMode::Whitted && blocked(j) {
-                continue;
+        let highlights = mat.shininess > 0.0 && mat.specular != Vec3::ZERO;
+        // PERF: the geometry of four lights at a time (`light_quad.rs`, the
+        // scalar loop's bits); the sums stay in the lights' order.
+        for (q, quad) in self.light_quads.iter().enumerate() {
+            let terms = light_terms(quad, surf.point, nf, ns, view);
+            for i in lanes_of(terms.lit) {
+                let j = 4 * q + i;
+                if self.mode == RenderMode::Whitted && blocked(j) {
+                    continue;
+                }
+                let mut c = kd * terms.ndl[i].max(0.0);
+                if highlights {
+                    c += mat.specular * terms.rdv[i].max(0.0).powf(mat.shininess);
+                }
+                color += self.env.lights[j].color * c;
             }
-            let mut c = kd * ns.dot(l).max(0.0);
-            if mat.shininess > 0.0 && mat.specular != Vec3::ZERO {
-                let r = reflect(-l, ns);
-                c += mat.specular * r.dot(view).max(0.0).powf(mat.shininess);
-            }
-            color += light.color * c;
         }
         let mut bounces = [None; 2];
         if self.mode != RenderMode::Whitted || depth >= self.max_depth {
@@ -371,12 +379,11 @@ impl<T: Tracer> Shader<'_, T> {
         depth: u32,
     ) -> [Vec3; N] {
         let hits = self.tracer.intersect_packet(rays, lanes);
-        let preps: [Option<Prepared>; N] = std::array::from_fn(|l| {
-            if lanes & (1 << l) == 0 {
-                return None;
-            }
-            self.prepare(&rays[l], cones[l], hits[l])
-        });
+        // PERF: filled in place (`from_fn` moved each lane's result twice).
+        let mut preps: [Option<Prepared>; N] = [const { None }; N];
+        for l in lanes_of(lanes) {
+            preps[l] = self.prepare(&rays[l], cones[l], hits[l]);
+        }
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
             blocked.reserve(self.env.lights.len());
