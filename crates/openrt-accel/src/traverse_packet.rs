@@ -18,7 +18,7 @@
 //! `unchecked` mask that the pop test lets through.
 
 use crate::kdnode::{KdNode, MAX_DEPTH};
-use crate::packet::{lanes_of, sign_groups};
+use crate::packet::{by_axis, lanes_of, sign_groups};
 use crate::traverse::{traverse, widen_down, widen_up};
 use crate::{MAX_LANES, Ray};
 
@@ -136,15 +136,7 @@ where
 {
     // Origins and safe reciprocal directions, axis by axis (lanes outside
     // `lanes` compute with whatever they hold and are never looked at).
-    let mut org = [[0.0f32; N]; 3];
-    let mut inv = [[0.0f32; N]; 3];
-    for l in 0..N {
-        let (o, i) = (rays[l].origin.to_array(), rays[l].inv_dir.to_array());
-        for a in 0..3 {
-            org[a][l] = o[a];
-            inv[a][l] = i[a];
-        }
-    }
+    let (org, inv) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.inv_dir));
     let mut t_min: [f32; N] = std::array::from_fn(|l| widen_down(t0[l]));
     let mut t_max: [f32; N] = std::array::from_fn(|l| widen_up(t1[l]));
     // PERF: the stack is not zeroed: entries are written before they are read.
