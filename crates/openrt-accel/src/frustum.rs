@@ -148,10 +148,45 @@ impl Frustum {
         let k = first.abs().max_position();
         let (a, b) = ((k + 1) % 3, (k + 2) % 3);
         let s = first[k].signum();
-        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) =
-            (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        let (inf, zero) = (f32x4::splat(f32::INFINITY), f32x4::ZERO);
+        let (mut lo_u4, mut hi_u4, mut lo_v4, mut hi_v4) = (inf, -inf, inf, -inf);
         let mut bad = false;
-        for (l, r) in rays.iter().enumerate() {
+        // PERF: four lanes at a time (their two divisions in one `divps`
+        // each); a lane loop was 3% of a primary-query profile. The same
+        // quotients, and the same bounds up to the sign of a zero, which
+        // the margin below removes.
+        let whole = N - N % 4;
+        let (sgv, sv) = (f32x4::splat(sg), f32x4::splat(s));
+        for c in (0..whole).step_by(4) {
+            let on_bits = (lanes >> c) & 0xf;
+            if on_bits == 0 {
+                continue;
+            }
+            let on = f32x4::new(std::array::from_fn(|i| {
+                f32::from_bits(if on_bits & (1 << i) != 0 { u32::MAX } else { 0 })
+            }));
+            let axis = |x: usize| f32x4::new(std::array::from_fn(|i| rays[c + i].dir[x])) * sgv;
+            let (dk, da, db) = (axis(k), axis(a), axis(b));
+            let ok = (dk * sv).simd_gt(zero) & dk.is_finite() & da.is_finite() & db.is_finite();
+            bad |= (!ok).to_bitmask() & on_bits != 0;
+            let (u, v) = (da / dk, db / dk);
+            lo_u4 = (on & u.simd_lt(lo_u4)).bitselect(u, lo_u4);
+            hi_u4 = (on & u.simd_gt(hi_u4)).bitselect(u, hi_u4);
+            lo_v4 = (on & v.simd_lt(lo_v4)).bitselect(v, lo_v4);
+            hi_v4 = (on & v.simd_gt(hi_v4)).bitselect(v, hi_v4);
+        }
+        let low = |x: f32x4| {
+            x.to_array()
+                .into_iter()
+                .fold(f32::INFINITY, |m, y| if y < m { y } else { m })
+        };
+        let high = |x: f32x4| {
+            x.to_array()
+                .into_iter()
+                .fold(f32::NEG_INFINITY, |m, y| if y > m { y } else { m })
+        };
+        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) = (low(lo_u4), high(hi_u4), low(lo_v4), high(hi_v4));
+        for (l, r) in rays.iter().enumerate().skip(whole) {
             let on = lanes & (1 << l) != 0;
             let d = r.dir.to_array();
             let (dk, da, db) = (d[k] * sg, d[a] * sg, d[b] * sg);
@@ -283,6 +318,62 @@ mod tests {
     use super::*;
     use crate::triangle::intersect_triangle;
     use crate::{Aabb, Triangle, meshgen};
+
+    /// The rectangle and the refusals of the four-lane pass are a lane
+    /// loop's, for camera packets, packets with a lane pointing back, along
+    /// an axis or with NaN, partial masks, and widths with lanes left over.
+    #[test]
+    fn rectangles_four_lanes_at_a_time_are_the_lane_loops() {
+        fn lane_loop<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<[u32; 4]> {
+            let first = rays[lanes.trailing_zeros() as usize].dir;
+            let k = first.abs().max_position();
+            let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+            let s = first[k].signum();
+            let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) =
+                (f32::INFINITY, -f32::INFINITY, f32::INFINITY, -f32::INFINITY);
+            for l in lanes_of(lanes) {
+                let d = rays[l].dir;
+                if !(d[k] * s > 0.0 && d.is_finite()) {
+                    return None;
+                }
+                let (u, v) = (d[a] / d[k], d[b] / d[k]);
+                (lo_u, hi_u, lo_v, hi_v) = (lo_u.min(u), hi_u.max(u), lo_v.min(v), hi_v.max(v));
+            }
+            if !(lo_u.is_finite() && hi_u.is_finite() && lo_v.is_finite() && hi_v.is_finite()) {
+                return None;
+            }
+            let m = FRUSTUM_MARGIN * (1.0 + lo_u.abs().max(hi_u.abs()).max(lo_v.abs()).max(hi_v.abs()));
+            Some([lo_u - m, hi_u + m, lo_v - m, hi_v + m].map(f32::to_bits))
+        }
+        fn check<const N: usize>(rng: &mut SmallRng, rays: [Ray; N]) {
+            let mut rays = rays;
+            let o = rays[0].origin;
+            match rng.random_range(0..6) {
+                0 => {
+                    let l = rng.random_range(0..N);
+                    rays[l] = Ray::infinite(o, -rays[l].dir);
+                }
+                1 => rays[rng.random_range(0..N)] = Ray::infinite(o, Vec3::new(0.0, -0.0, -1.0)),
+                2 => rays[rng.random_range(0..N)] = Ray::infinite(o, Vec3::new(f32::NAN, 0.1, -1.0)),
+                _ => {}
+            }
+            let lanes = rng.random::<u32>() & (u32::MAX >> (32 - N)) | 1 << rng.random_range(0..N);
+            let got = Frustum::new(&rays, lanes).map(|f| f.rect.map(f32::to_bits));
+            assert_eq!(got, lane_loop(&rays, lanes), "{N} lanes {lanes:#x}");
+        }
+        let mut rng = SmallRng::seed_from_u64(31);
+        let eye = Vec3::new(0.5, -0.25, 2.0);
+        for p in blocks(eye, Vec3::new(0.0, 0.0, -10.0))
+            .iter()
+            .chain(&blocks(eye, Vec3::new(9.0, 1.0, 2.5)))
+        {
+            for _ in 0..20 {
+                check::<16>(&mut rng, *p);
+                check::<8>(&mut rng, std::array::from_fn(|l| p[l]));
+                check::<6>(&mut rng, std::array::from_fn(|l| p[l + 3]));
+            }
+        }
+    }
 
     /// 4x4 pixel blocks of a camera, as the renderer's primary packets.
     fn blocks(eye: Vec3, at: Vec3) -> Vec<[Ray; 16]> {

@@ -276,10 +276,9 @@ pub(crate) fn leaf_packet<const N: usize>(
             if skip & (1 << j) != 0 {
                 continue;
             }
-            let tri = b.triangle(j);
-            let mut h = pbr.intersect(&tri, live, closest);
+            let mut h = pbr.intersect_block(b, j, live, closest);
             if h.edge != 0 {
-                h.settle_edges(rays, &tri, closest);
+                h.settle_edges(rays, &b.triangle(j), closest);
             }
             if h.hit != 0 {
                 live &= !visit(&h, ids[off + k * LANES + j], closest);

@@ -47,13 +47,34 @@ impl<const N: usize> PacketBoxes<N> {
     /// The `lanes` of `rays`.
     #[must_use]
     pub fn new(rays: &[Ray; N], lanes: u32) -> Self {
-        let mut testable = 0u32;
         let mut valid = 0u32;
-        let mut scale = 0.0f32;
         for (l, r) in rays.iter().enumerate() {
             valid |= u32::from(r.is_valid()) << l;
         }
-        for l in crate::lanes_of(lanes) {
+        let o: [[f32; N]; 3] = std::array::from_fn(|a| std::array::from_fn(|l| rays[l].origin[a]));
+        let inv: [[f32; N]; 3] = std::array::from_fn(|a| std::array::from_fn(|l| rays[l].inv_dir[a]));
+        // Testable lanes and the largest coordinate of their origins.
+        // PERF: four lanes at a time on the laid-out values (a lane loop of
+        // finiteness tests was half of this function's samples).
+        let (mut testable, mut scale) = (0u32, f32x4::ZERO);
+        let quad = |v: &[f32; N], c: usize| f32x4::new([v[c], v[c + 1], v[c + 2], v[c + 3]]);
+        for c in (0..N - N % 4).step_by(4) {
+            let mut ok = f32x4::splat(f32::from_bits(u32::MAX));
+            let mut m = f32x4::ZERO;
+            for a in 0..3 {
+                let (ov, iv) = (quad(&o[a], c), quad(&inv[a], c));
+                ok = ok & ov.is_finite() & iv.is_finite() & iv.simd_ne(f32x4::ZERO);
+                m = m.fast_max(ov.abs());
+            }
+            let bits = ok.to_bitmask() & (lanes >> c) & 0xf;
+            testable |= bits << c;
+            let keep = f32x4::new(std::array::from_fn(|i| {
+                f32::from_bits(if bits & (1 << i) != 0 { u32::MAX } else { 0 })
+            }));
+            scale = keep.bitselect(scale.fast_max(m), scale);
+        }
+        let mut scale = scale.to_array().into_iter().fold(0.0f32, f32::max);
+        for l in crate::lanes_of(lanes).filter(|&l| l >= N - N % 4) {
             let r = &rays[l];
             if r.inv_dir.is_finite() && r.origin.is_finite() && r.inv_dir.cmpne(glam::Vec3::ZERO).all() {
                 testable |= 1 << l;
@@ -61,8 +82,8 @@ impl<const N: usize> PacketBoxes<N> {
             }
         }
         Self {
-            o: std::array::from_fn(|a| std::array::from_fn(|l| rays[l].origin[a])),
-            inv: std::array::from_fn(|a| std::array::from_fn(|l| rays[l].inv_dir[a])),
+            o,
+            inv,
             dir: std::array::from_fn(|a| std::array::from_fn(|l| rays[l].dir[a])),
             t_min: std::array::from_fn(|l| rays[l].t_min),
             t_max: std::array::from_fn(|l| rays[l].t_max),
@@ -204,6 +225,53 @@ mod tests {
             rng.random_range(0.0..0.5),
         );
         Aabb::new(c - h, c + h)
+    }
+
+    /// The testable lanes and the origins' scale, four lanes at a time, are
+    /// those of a lane loop: on random rays, zero, infinite and NaN direction
+    /// components, huge and NaN origins, partial lane masks, and widths with
+    /// lanes left over.
+    #[test]
+    fn testable_lanes_and_scale_are_the_lane_loops() {
+        fn check<const N: usize>(rng: &mut SmallRng) {
+            let world = Aabb::new(Vec3::splat(-4.0), Vec3::splat(4.0));
+            let rays: [Ray; N] = std::array::from_fn(|_| {
+                let r = meshgen::random_rays(1, rng.random(), world)[0];
+                let (mut o, mut d) = (r.origin, r.dir);
+                match rng.random_range(0..10) {
+                    0 => d.y = if rng.random() { 0.0 } else { -0.0 },
+                    1 => d.x = f32::INFINITY,
+                    2 => d.z = f32::NAN,
+                    3 => o.x = f32::NAN,
+                    4 => o.y = -3e38,
+                    5 => o.z = f32::INFINITY,
+                    6 => d.x = 1e-45,
+                    _ => {}
+                }
+                Ray::new(o, d, 0.0, f32::INFINITY)
+            });
+            let lanes = rng.random::<u32>() & (u32::MAX >> (32 - N));
+            let (mut testable, mut scale) = (0u32, 0.0f32);
+            for l in crate::lanes_of(lanes) {
+                let r = &rays[l];
+                if r.inv_dir.is_finite() && r.origin.is_finite() && r.inv_dir.cmpne(Vec3::ZERO).all() {
+                    testable |= 1 << l;
+                    scale = scale.max(r.origin.abs().max_element());
+                }
+            }
+            let b = PacketBoxes::new(&rays, lanes);
+            assert_eq!(
+                (b.testable, b.scale.to_bits()),
+                (testable, scale.to_bits()),
+                "{N} lanes {lanes:#x}"
+            );
+        }
+        let mut rng = SmallRng::seed_from_u64(12);
+        for _ in 0..3000 {
+            check::<16>(&mut rng);
+            check::<8>(&mut rng);
+            check::<6>(&mut rng);
+        }
     }
 
     /// The laid-out clip is the lane-by-lane clip, bit for bit: random and
