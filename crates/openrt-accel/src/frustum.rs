@@ -20,6 +20,7 @@
 use wide::f32x4;
 
 use crate::leaf_blocks::TriBlock;
+use crate::packet::by_axis;
 use crate::{Ray, lanes_of};
 
 /// Relative margin by which a triangle's projection must clear the lanes'
@@ -105,15 +106,51 @@ impl Frustum {
         if off() || lanes == 0 || !target.is_finite() {
             return None;
         }
-        // The largest coordinate of the apex and the lanes' origins.
-        let mut scale = target.abs().max_element();
-        for l in lanes_of(lanes) {
+        // PERF: four lanes at a time on the rays laid out by axis (a lane
+        // loop was 5% of a shadow-query profile).
+        let (o, d) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.dir));
+        let quad = |v: &[f32; N], c: usize| f32x4::new([v[c], v[c + 1], v[c + 2], v[c + 3]]);
+        let on = |c: usize| {
+            let bits = lanes >> c;
+            f32x4::new(std::array::from_fn(|i| {
+                f32::from_bits(if bits & (1 << i) != 0 { u32::MAX } else { 0 })
+            }))
+        };
+        let max3 = |v: [f32x4; 3]| v[0].abs().fast_max(v[1].abs()).fast_max(v[2].abs());
+        // The largest coordinate of the apex and the lanes' origins (a NaN
+        // origin ends the lane off target below).
+        let whole = N - N % 4;
+        let mut scale4 = f32x4::ZERO;
+        for c in (0..whole).step_by(4) {
+            scale4 = on(c).bitselect(scale4.fast_max(max3([0, 1, 2].map(|a| quad(&o[a], c)))), scale4);
+        }
+        let mut scale = scale4.to_array().into_iter().fold(target.abs().max_element(), f32::max);
+        for l in lanes_of(lanes).filter(|&l| l >= whole) {
+            scale = scale.max(rays[l].origin.abs().max_element());
+        }
+        // Each lane must end at the target, within 1e-6 of the scale of the
+        // coordinates involved, over an interval ending by 1.
+        let (tx, ty, tz) = (f32x4::splat(target.x), f32x4::splat(target.y), f32x4::splat(target.z));
+        let (tiny, ppm) = (f32x4::splat(1e-30), f32x4::splat(1e-6));
+        for c in (0..whole).step_by(4) {
+            let e = [0, 1, 2].map(|a| quad(&o[a], c) + quad(&d[a], c));
+            let tolerance = ppm * f32x4::splat(scale).fast_max(max3(e)).fast_max(tiny);
+            let off_target = max3([e[0] - tx, e[1] - ty, e[2] - tz]);
+            let t_max = f32x4::new(std::array::from_fn(|i| rays[c + i].t_max));
+            // NOTE: a NaN or infinite end fails the lane (`fast_max` may
+            // drop a NaN); a NaN `t_max` fails the compare.
+            let finite = e[0].is_finite() & e[1].is_finite() & e[2].is_finite();
+            let fine = t_max.simd_le(f32x4::ONE) & off_target.simd_le(tolerance) & finite;
+            if (on(c) & !fine).to_bitmask() != 0 {
+                return None;
+            }
+        }
+        for l in lanes_of(lanes).filter(|&l| l >= whole) {
             let r = &rays[l];
             let end = r.origin + r.dir;
-            scale = scale.max(r.origin.abs().max_element());
             let tolerance = 1e-6 * scale.max(end.abs().max_element()).max(1e-30);
             let off_target = (end - target).abs().max_element();
-            if r.t_max.is_nan() || r.t_max > 1.0 || off_target.is_nan() || off_target > tolerance {
+            if !(r.t_max <= 1.0 && off_target <= tolerance && end.is_finite()) {
                 return None;
             }
         }
@@ -372,6 +409,74 @@ mod tests {
                 check::<8>(&mut rng, std::array::from_fn(|l| p[l]));
                 check::<6>(&mut rng, std::array::from_fn(|l| p[l + 3]));
             }
+        }
+    }
+
+    /// Four lanes at a time, a shared-target frustum is made for the same
+    /// packets as the lane loop makes it, with the same slack: shadow
+    /// packets, a lane off target, past the target, with a NaN or huge
+    /// origin, partial masks, widths with lanes left over.
+    #[test]
+    fn shared_targets_four_lanes_at_a_time_are_the_lane_loops() {
+        fn lane_loop<const N: usize>(rays: &[Ray; N], lanes: u32, target: Vec3) -> Option<f32> {
+            let scale = lanes_of(lanes).fold(target.abs().max_element(), |s, l| {
+                s.max(rays[l].origin.abs().max_element())
+            });
+            for l in lanes_of(lanes) {
+                let r = &rays[l];
+                let end = r.origin + r.dir;
+                let tolerance = 1e-6 * scale.max(end.abs().max_element()).max(1e-30);
+                let off_target = (end - target).abs().max_element();
+                if !(r.t_max <= 1.0 && off_target <= tolerance && end.is_finite()) {
+                    return None;
+                }
+            }
+            Some(scale)
+        }
+        fn check<const N: usize>(rng: &mut SmallRng) {
+            let target = Vec3::new(rng.random_range(-5.0..5.0), 4.0, rng.random_range(-5.0..5.0));
+            let mut rays: [Ray; N] = std::array::from_fn(|_| {
+                let p = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..0.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                Ray::new(p, target - p, 0.0, 1.0 - 1e-4)
+            });
+            let l = rng.random_range(0..N);
+            let r = rays[l];
+            match rng.random_range(0..8) {
+                0 => rays[l] = Ray::new(r.origin, r.dir * 1.001, 0.0, 1.0 - 1e-4),
+                1 => rays[l] = Ray::new(r.origin, r.dir, 0.0, 1.5),
+                2 => {
+                    let mut o = r.origin;
+                    o[rng.random_range(0..3)] = f32::NAN;
+                    rays[l] = Ray::new(o, r.dir, 0.0, 1.0);
+                }
+                3 => {
+                    let p = Vec3::new(3e4, -2.0, 1.0);
+                    rays[l] = Ray::new(p, target - p, 0.0, 1.0);
+                }
+                4 => rays[l] = Ray::new(r.origin, r.dir * (1.0 + 1e-7), 0.0, f32::NAN),
+                _ => {}
+            }
+            let lanes = rng.random::<u32>() & (u32::MAX >> (32 - N)) | 1 << rng.random_range(0..N);
+            // The rectangle's own refusals (lanes pointing both ways along
+            // its axis) are the other test's.
+            let want = lane_loop(&rays, lanes, target)
+                .filter(|&s| Frustum::from_apex(target, &rays, lanes, true, false, s).is_some());
+            let got = Frustum::toward(&rays, lanes, target).map(|f| f.slack.to_array()[0].to_bits());
+            assert_eq!(
+                got,
+                want.map(|s| (FRUSTUM_MARGIN * s).to_bits()),
+                "{N} lanes {lanes:#x}"
+            );
+        }
+        let mut rng = SmallRng::seed_from_u64(44);
+        for _ in 0..4000 {
+            check::<16>(&mut rng);
+            check::<8>(&mut rng);
+            check::<6>(&mut rng);
         }
     }
 
