@@ -122,7 +122,8 @@ impl Frustum {
         let whole = N - N % 4;
         let mut scale4 = f32x4::ZERO;
         for c in (0..whole).step_by(4) {
-            scale4 = on(c).bitselect(scale4.fast_max(max3([0, 1, 2].map(|a| quad(&o[a], c)))), scale4);
+            let origins = [quad(&o[0], c), quad(&o[1], c), quad(&o[2], c)];
+            scale4 = on(c).bitselect(scale4.fast_max(max3(origins)), scale4);
         }
         let mut scale = scale4.to_array().into_iter().fold(target.abs().max_element(), f32::max);
         for l in lanes_of(lanes).filter(|&l| l >= whole) {
@@ -133,7 +134,13 @@ impl Frustum {
         let (tx, ty, tz) = (f32x4::splat(target.x), f32x4::splat(target.y), f32x4::splat(target.z));
         let (tiny, ppm) = (f32x4::splat(1e-30), f32x4::splat(1e-6));
         for c in (0..whole).step_by(4) {
-            let e = [0, 1, 2].map(|a| quad(&o[a], c) + quad(&d[a], c));
+            // NOTE: no `[_; 3].map`: it can be left as calls (this function
+            // took 8% of the shadow queries instead of 3% in one build).
+            let e = [
+                quad(&o[0], c) + quad(&d[0], c),
+                quad(&o[1], c) + quad(&d[1], c),
+                quad(&o[2], c) + quad(&d[2], c),
+            ];
             let tolerance = ppm * f32x4::splat(scale).fast_max(max3(e)).fast_max(tiny);
             let off_target = max3([e[0] - tx, e[1] - ty, e[2] - tz]);
             let t_max = f32x4::new(std::array::from_fn(|i| rays[c + i].t_max));
