@@ -51,7 +51,7 @@ pub(crate) struct PacketBlockRay<const N: usize> {
     kz: usize,
 }
 
-/// What [`PacketBlockRay::intersect`] decided for one triangle.
+/// What [`PacketBlockRay::intersect_block`] decided for one triangle.
 pub(crate) struct LaneHits {
     /// Lanes that hit the triangle inside their interval; their `t`, `b1`
     /// and `b2` hold the hit.
@@ -214,18 +214,18 @@ impl<const N: usize> PacketBlockRay<N> {
         }
     }
 
-    /// The whole watertight test of `tri` for the `lanes`, lane `l` over
-    /// `(t_min, t_max[l])`: lane by lane the answer of
-    /// `intersect_triangle(&rays[l], tri, t_max[l])`, except for the lanes
-    /// returned in [`LaneHits::edge`], which the caller decides with it.
-    /// Chunks without a lane of `lanes` are not computed. (The leaf loops
-    /// call [`PacketBlockRay::intersect_block`], the same test.)
+    /// [`PacketBlockRay::intersect_block`] of a triangle given whole (the
+    /// tests' entry).
     #[cfg(test)]
     pub(crate) fn intersect(&self, tri: &Triangle, lanes: u32, t_max: &[f32; N]) -> LaneHits {
         self.intersect_permuted(&self.permute(tri), lanes, t_max)
     }
 
-    /// [`PacketBlockRay::intersect`] of triangle `j` of `block`.
+    /// The whole watertight test of triangle `j` of `block` for the
+    /// `lanes`, lane `l` over `(t_min, t_max[l])`: lane by lane the answer
+    /// of `intersect_triangle(&rays[l], tri, t_max[l])`, except for the
+    /// lanes returned in [`LaneHits::edge`], which the caller decides with
+    /// it. Chunks without a lane of `lanes` are not computed.
     // PERF: the triangle's coordinates go from the block's lanes to the
     // splats without being put together as a `Triangle` first (kitchen
     // primary queries 2% faster).

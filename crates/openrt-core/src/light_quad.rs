@@ -7,7 +7,7 @@
 //! broadcast: four lights cost one square root, one division and one pass
 //! of products, with no gathering. Each lane performs the scalar code's
 //! operations in its order (no fused multiply-add), so every value is the
-//! bits of [`light_terms_scalar`], its scalar twin (tested).
+//! bits of its scalar twin, `light_terms_scalar` in the tests.
 
 use glam::Vec3;
 use wide::f32x4;
