@@ -175,14 +175,15 @@ fn for_each_candidate(
 ) -> bool {
     let off = leaf.prim_offset() as usize;
     let first = off / LANES;
-    let count = (leaf.prim_count() as usize).div_ceil(LANES);
+    let n = leaf.prim_count() as usize;
+    let count = n.div_ceil(LANES);
     // PERF: the masks of up to `CHUNK` blocks are gathered before any of
     // them is looked at, so that the pre-tests of a leaf run without a branch
     // on their results between them.
     for (c, chunk) in blocks[first..first + count].chunks(CHUNK).enumerate() {
         let mut m = 0u64;
         for (k, b) in chunk.iter().enumerate() {
-            m |= u64::from(br.candidates(b)) << (k * LANES);
+            m |= u64::from(br.candidates(b) & !padding(n, c * CHUNK + k)) << (k * LANES);
         }
         while m != 0 {
             let bit = m.trailing_zeros() as usize;
@@ -194,6 +195,16 @@ fn for_each_candidate(
         }
     }
     false
+}
+
+/// The lanes of block `k` of a leaf of `n` triangles that only repeat its
+/// last triangle (the padding of its last block). Skipping them changes no
+/// answer: a repeat meets the ray exactly as the triangle itself did (the
+/// same bits, the same index).
+#[inline]
+fn padding(n: usize, k: usize) -> u32 {
+    let real = n.saturating_sub(k * LANES).min(LANES);
+    ((1u32 << LANES) - 1) & !((1u32 << real) - 1)
 }
 
 /// Tests the triangles of one leaf and returns the closest hit below
@@ -264,11 +275,13 @@ pub(crate) fn leaf_packet<const N: usize>(
 ) -> u32 {
     let off = leaf.prim_offset() as usize;
     let first = off / LANES;
-    let count = (leaf.prim_count() as usize).div_ceil(LANES);
+    let n = leaf.prim_count() as usize;
+    let count = n.div_ceil(LANES);
     let mut live = lanes;
     for (k, b) in blocks[first..first + count].iter().enumerate() {
-        // Triangles no lane can hit are skipped for the whole packet.
-        let skip = frustum.map_or(0, |f| f.rejects(b));
+        // Triangles no lane can hit are skipped for the whole packet, and
+        // so is the last block's padding.
+        let skip = frustum.map_or(0, |f| f.rejects(b)) | padding(n, k);
         if skip == (1 << LANES) - 1 {
             continue;
         }
@@ -389,6 +402,24 @@ mod tests {
                 hits > 100 && hits < tested,
                 "{name}: {hits} hits in {tested} leaf tests"
             );
+        }
+    }
+
+    #[test]
+    fn only_the_last_blocks_repeats_count_as_padding() {
+        assert_eq!(padding(1, 0), 0b1110);
+        assert_eq!(padding(3, 0), 0b1000);
+        assert_eq!(padding(4, 0), 0);
+        assert_eq!(padding(5, 0), 0);
+        assert_eq!(padding(5, 1), 0b1110);
+        assert_eq!(padding(8, 1), 0);
+        assert_eq!(padding(11, 2), 0b1000);
+        // Every slot is either a triangle of the leaf or padding.
+        for n in 1usize..40 {
+            let real: u32 = (0..n.div_ceil(LANES))
+                .map(|k| LANES as u32 - padding(n, k).count_ones())
+                .sum();
+            assert_eq!(real as usize, n);
         }
     }
 
