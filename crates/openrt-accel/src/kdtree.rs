@@ -12,6 +12,7 @@ use crate::packet::lanes_of;
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
 use crate::traverse::traverse;
 use crate::traverse_packet::traverse_packet;
+use crate::tri_mailbox::TriMailbox;
 use crate::triangle::is_valid_triangle;
 use crate::triangle_packet::{LaneHits, PacketBlockRay};
 use crate::{Aabb, AccelError, Hit, PacketBoxes, Ray, Triangle};
@@ -376,7 +377,8 @@ impl KdTree {
         };
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
         let mut got = 0u32;
-        self.leaf_packet(&pbr, rays, frustum, lanes, leaf, &mut closest, |h, _, _| {
+        // One leaf names no triangle twice: no mailbox.
+        self.leaf_packet(&pbr, rays, frustum, lanes, leaf, &mut closest, None, |h, _, _| {
             for l in lanes_of(h.hit) {
                 if well_inside(&rays[l], h.lane(l), margin) {
                     got |= 1 << l;
@@ -448,18 +450,28 @@ impl KdTree {
         let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
+        let mut tested = TriMailbox::new();
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                 let f = packet_frustum(frustum, &own, rays, live);
-                self.leaf_packet(pbr, rays, f, active, leaf, closest, |h, prim, closest| {
-                    for l in lanes_of(h.hit) {
-                        let (t, b1, b2) = h.lane(l);
-                        closest[l] = t;
-                        hits[l] = Some(Hit { t, prim, b1, b2 });
-                    }
-                    found |= h.hit;
-                    0
-                });
+                self.leaf_packet(
+                    pbr,
+                    rays,
+                    f,
+                    active,
+                    leaf,
+                    closest,
+                    Some(&mut tested),
+                    |h, prim, closest| {
+                        for l in lanes_of(h.hit) {
+                            let (t, b1, b2) = h.lane(l);
+                            closest[l] = t;
+                            hits[l] = Some(Hit { t, prim, b1, b2 });
+                        }
+                        found |= h.hit;
+                        0
+                    },
+                );
                 return 0;
             }
             let brs = brs.get_or_insert_with(|| block_rays(rays));
@@ -514,6 +526,7 @@ impl KdTree {
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         let mut found = None;
+        let mut tested = TriMailbox::new();
         let blocked = traverse_packet(
             &self.nodes,
             rays,
@@ -524,7 +537,7 @@ impl KdTree {
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                     let f = packet_frustum(frustum, &own, rays, live);
-                    let hit = self.leaf_packet(pbr, rays, f, active, leaf, closest, |h, _, _| h.hit);
+                    let hit = self.leaf_packet(pbr, rays, f, active, leaf, closest, Some(&mut tested), |h, _, _| h.hit);
                     if hit != 0 {
                         found = found.or(Some(leaf));
                     }
@@ -555,6 +568,7 @@ impl KdTree {
         lanes: u32,
         leaf: KdNode,
         closest: &mut [f32; N],
+        tested: Option<&mut TriMailbox>,
         visit: impl FnMut(&LaneHits, u32, &mut [f32; N]) -> u32,
     ) -> u32 {
         leaf_packet(
@@ -566,6 +580,7 @@ impl KdTree {
             &self.prim_ids,
             &self.blocks,
             closest,
+            tested,
             visit,
         )
     }

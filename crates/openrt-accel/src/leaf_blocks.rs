@@ -20,6 +20,7 @@ use wide::f32x4;
 
 use crate::frustum::Frustum;
 use crate::kdnode::KdNode;
+use crate::tri_mailbox::TriMailbox;
 use crate::triangle::{TriHit, intersect_triangle};
 use crate::triangle_packet::{LaneHits, PacketBlockRay};
 use crate::{AccelError, Ray, Triangle};
@@ -253,13 +254,16 @@ pub(crate) fn leaf_occluder_where(
 }
 
 /// Tests the triangles of `leaf` against the `lanes` of `rays`, each lane
-/// over `(t_min, closest[l])`, in leaf order (padding slots included, as
-/// [`for_each_candidate`] meets them), and calls `visit(hits, prim,
-/// closest)` for each triangle that some lane hits; `visit` lowers
-/// `closest` for the hits it keeps and returns the lanes that are done,
-/// which take no further part. Returns the lanes done. Per lane, the hits
-/// reaching `visit` and their order are those of the scalar kernel over
-/// [`for_each_candidate`]'s triangles for that lane's ray alone.
+/// over `(t_min, closest[l])`, in leaf order (the last block's padding
+/// skipped), and calls `visit(hits, prim, closest)` for each triangle that
+/// some lane hits; `visit` lowers `closest` to the hits it keeps (a
+/// closest-hit walk keeps every hit it is given) and returns the lanes that
+/// are done, which take no further part. Returns the lanes done. With a
+/// mailbox (`tested`, one per walk), a lane skips the triangles it tested
+/// in the walk's earlier leaves. Per lane, the hits reaching `visit` and
+/// their order are those of the scalar kernel over the leaf's triangles for
+/// that lane's ray alone, less those a mailbox skips, which could not lower
+/// its bound.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn leaf_packet<const N: usize>(
@@ -271,6 +275,7 @@ pub(crate) fn leaf_packet<const N: usize>(
     ids: &[u32],
     blocks: &[TriBlock],
     closest: &mut [f32; N],
+    mut tested: Option<&mut TriMailbox>,
     mut visit: impl FnMut(&LaneHits, u32, &mut [f32; N]) -> u32,
 ) -> u32 {
     let off = leaf.prim_offset() as usize;
@@ -289,12 +294,19 @@ pub(crate) fn leaf_packet<const N: usize>(
             if skip & (1 << j) != 0 {
                 continue;
             }
-            let mut h = pbr.intersect_block(b, j, live, closest);
+            // Lanes that tested this triangle in another leaf of the walk
+            // get nothing new from it (`TriMailbox`).
+            let prim = ids[off + k * LANES + j];
+            let todo = tested.as_mut().map_or(live, |m| m.untested(prim, live));
+            if todo == 0 {
+                continue;
+            }
+            let mut h = pbr.intersect_block(b, j, todo, closest);
             if h.edge != 0 {
                 h.settle_edges(rays, &b.triangle(j), closest);
             }
             if h.hit != 0 {
-                live &= !visit(&h, ids[off + k * LANES + j], closest);
+                live &= !visit(&h, prim, closest);
                 if live == 0 {
                     return lanes;
                 }

@@ -49,6 +49,7 @@ mod sah_build;
 mod toplevel;
 mod traverse;
 mod traverse_packet;
+mod tri_mailbox;
 mod triangle;
 mod triangle_packet;
 
