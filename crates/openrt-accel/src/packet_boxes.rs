@@ -178,15 +178,15 @@ impl<const N: usize> PacketBoxes<N> {
                 let (l, h) = (f32x4::splat(lo[a]), f32x4::splat(hi[a]));
                 let x = (l - o) * inv;
                 let y = (h - o) * inv;
-                let swap = x.simd_gt(y);
-                let n = swap.bitselect(y, x);
-                let f = swap.bitselect(x, y) * widen;
+                // `if x > y { (y, x) } else { (x, y) }`.
+                let n = lt_else(y, x);
+                let f = gt_else(x, y) * widen;
                 let parallel = d.simd_eq(zero);
                 outside |= parallel & (o.simd_lt(l) | o.simd_gt(h));
                 let n = parallel.bitselect(neg_inf, n);
                 let f = parallel.bitselect(inf, f);
-                near = n.simd_gt(near).bitselect(n, near);
-                far = f.simd_lt(far).bitselect(f, far);
+                near = gt_else(n, near);
+                far = lt_else(f, far);
             }
             // `clip`'s `t0 > t1` rejection (a NaN bound does not reject).
             let miss = (outside | near.simd_gt(far)).to_bitmask();
@@ -200,6 +200,37 @@ impl<const N: usize> PacketBoxes<N> {
             live |= hit << c;
         }
         (t0, t1, live)
+    }
+}
+
+/// `if a > b { a } else { b }` lane by lane (`b` when either is NaN).
+// PERF: one `maxps` on SSE, whose rule this is, for three instructions of a
+// compare and a select (kitchen primary queries: the clips were 7% of them).
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn gt_else(a: f32x4, b: f32x4) -> f32x4 {
+    #[cfg(target_feature = "sse")]
+    {
+        a.fast_max(b)
+    }
+    #[cfg(not(target_feature = "sse"))]
+    {
+        a.simd_gt(b).bitselect(a, b)
+    }
+}
+
+/// `if a < b { a } else { b }` lane by lane (`b` when either is NaN): one
+/// `minps` on SSE, as [`gt_else`].
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn lt_else(a: f32x4, b: f32x4) -> f32x4 {
+    #[cfg(target_feature = "sse")]
+    {
+        a.fast_min(b)
+    }
+    #[cfg(not(target_feature = "sse"))]
+    {
+        a.simd_lt(b).bitselect(a, b)
     }
 }
 
