@@ -181,7 +181,7 @@ impl<T: Tracer> Shader<'_, T> {
     /// Radiance along `ray` with its cone (`depth` = number of bounces so far).
     pub fn trace(&mut self, ray: &Ray, cone: Cone, depth: u32) -> Vec3 {
         let hit = self.tracer.intersect(ray);
-        let Some(prep) = self.prepare(ray, cone, hit) else {
+        let Some(prep) = self.prepare(ray, cone, hit.as_ref()) else {
             return self.env.background;
         };
         // PERF: one bit per light on the stack; a scene with more lights
@@ -215,17 +215,20 @@ impl<T: Tracer> Shader<'_, T> {
     /// surfaces seen from the back are passed through (traced again from
     /// behind them, up to [`MAX_PASS_THROUGH`] times). `None` when the ray
     /// leaves the scene.
-    pub fn prepare(&self, ray: &Ray, cone: Cone, first: Option<SceneHit>) -> Option<Prepared> {
+    // PERF: the first hit by reference: a copy made by the caller for the
+    // call was read back before its stores had landed (failed store
+    // forwarding).
+    pub fn prepare(&self, ray: &Ray, cone: Cone, first: Option<&SceneHit>) -> Option<Prepared> {
         let scene = self.scene;
         let mut ray = *ray;
-        let mut hit = first;
+        let mut hit = first.copied();
         let mut passes = 0;
         let mut cone = cone;
         let surf = loop {
             let h = hit?;
             cone.width = cone.width_at(&ray, h.t);
             // NOTE: the tracer's hits come from this scene, so this never fails.
-            let surf = scene.surface(&ray, &h).ok()?;
+            let surf = scene.own_surface(&ray, &h)?;
             let mat = &scene.materials()[surf.material.index() as usize];
             if mat.one_sided && surf.geometric_normal.dot(ray.dir) > 0.0 && passes < MAX_PASS_THROUGH {
                 passes += 1;
@@ -280,17 +283,28 @@ impl<T: Tracer> Shader<'_, T> {
     /// light `j`'s shadow ray (from [`Shader::shadow_ray`]) is occluded;
     /// traces the reflection and refraction rays below `max_depth`.
     pub fn finish(&mut self, prep: &Prepared, blocked: impl Fn(usize) -> bool, depth: u32) -> Vec3 {
-        let (mut color, bounces) = self.local(prep, blocked, depth);
+        let mut bounces = [None; 2];
+        let mut color = self.local(prep, blocked, depth, &mut bounces);
         for (weight, ray) in bounces.into_iter().flatten() {
             color += weight * self.trace(&ray, prep.cone, depth + 1);
         }
         color
     }
 
-    /// The local part of [`Shader::finish`]: ambient and lights, and the
-    /// bounces still to trace, refraction first, each with the weight of
-    /// its radiance (added in this order by the caller).
-    pub fn local(&mut self, prep: &Prepared, blocked: impl Fn(usize) -> bool, depth: u32) -> (Vec3, Bounces) {
+    /// The local part of [`Shader::finish`]: ambient and lights; the
+    /// bounces still to trace are written to `bounces`, refraction first,
+    /// each with the weight of its radiance (added in this order by the
+    /// caller), `None` where there is none.
+    // PERF: the bounces are written in place: returned with the colour,
+    // each lane's pair was copied by a `memcpy` call (in GL-like frames
+    // too, where they are always `None`).
+    pub fn local(
+        &mut self,
+        prep: &Prepared,
+        blocked: impl Fn(usize) -> bool,
+        depth: u32,
+        bounces: &mut Bounces,
+    ) -> Vec3 {
         let scene = self.scene;
         let surf = &prep.surf;
         let (d, back, nf, ns, p_out) = (prep.d, prep.back, prep.nf, prep.ns, prep.p_out);
@@ -334,9 +348,10 @@ impl<T: Tracer> Shader<'_, T> {
             }
         }
         let color = Vec3::from(color);
-        let mut bounces = [None; 2];
+        bounces[0] = None;
+        bounces[1] = None;
         if self.mode != RenderMode::Whitted || depth >= self.max_depth {
-            return (color, bounces);
+            return color;
         }
         let mut mirror_weight = mat.specular;
         if mat.transmission > 0.0 {
@@ -365,7 +380,7 @@ impl<T: Tracer> Shader<'_, T> {
             self.counts.reflection += 1;
             bounces[1] = Some((mirror_weight, Ray::new(p_out, r, 0.0, f32::INFINITY)));
         }
-        (color, bounces)
+        color
     }
 
     /// Radiance along the `lanes` of a packet of rays (`depth` bounces so
@@ -385,7 +400,7 @@ impl<T: Tracer> Shader<'_, T> {
         // PERF: filled in place (`from_fn` moved each lane's result twice).
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
         for l in lanes_of(lanes) {
-            preps[l] = self.prepare(&rays[l], cones[l], hits[l]);
+            preps[l] = self.prepare(&rays[l], cones[l], hits[l].as_ref());
         }
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
@@ -413,8 +428,12 @@ impl<T: Tracer> Shader<'_, T> {
         for l in lanes_of(lanes) {
             match &preps[l] {
                 Some(p) => {
-                    (color[l], bounces[l]) =
-                        self.local(p, |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0), depth);
+                    color[l] = self.local(
+                        p,
+                        |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0),
+                        depth,
+                        &mut bounces[l],
+                    );
                 }
                 None => color[l] = self.env.background,
             }
