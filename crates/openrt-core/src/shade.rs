@@ -218,6 +218,8 @@ impl<T: Tracer> Shader<'_, T> {
     // PERF: the first hit by reference: a copy made by the caller for the
     // call was read back before its stores had landed (failed store
     // forwarding).
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
     pub fn prepare(&self, ray: &Ray, cone: Cone, first: Option<&SceneHit>) -> Option<Prepared> {
         let scene = self.scene;
         let mut ray = *ray;
