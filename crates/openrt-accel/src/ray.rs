@@ -52,6 +52,18 @@ impl Ray {
     /// error check [`Ray::is_valid`] first.
     #[must_use]
     pub fn new(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Self {
+        Self::new_inline(origin, dir, t_min, t_max)
+    }
+
+    /// [`Ray::new`] forced inline, for callers that make many rays and
+    /// store each at once (a light's shadow rays): a call's ray came back
+    /// through memory and was copied on before its stores had landed
+    /// (failed store forwarding). Elsewhere [`Ray::new`] stays a call:
+    /// inlined everywhere, it made some frames faster and others slower.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    #[must_use]
+    pub fn new_inline(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Self {
         let inv_dir = Vec3::new(safe_rcp(dir.x), safe_rcp(dir.y), safe_rcp(dir.z));
         let a = dir.abs();
         let kz = if a.x >= a.y && a.x >= a.z {
