@@ -127,9 +127,19 @@ impl<const N: usize> PacketBoxes<N> {
             }
         }
         let mut hit = 0u32;
-        for l in 0..N {
+        // PERF: four lanes at a time from aligned loads: as a lane loop the
+        // compiler peeled lane 0 and read lanes 1-4, 5-8, ... across two of
+        // the stores just made (failed store forwarding: 11% of the
+        // function's samples on robots).
+        for c in (0..N).step_by(4) {
+            let load = |v: &[f32; N]| {
+                f32x4::from(std::array::from_fn::<f32, 4, _>(|i| {
+                    v.get(c + i).copied().unwrap_or(0.0)
+                }))
+            };
             // NOTE: a NaN bound keeps the lane (the exact clip decides it).
-            hit |= u32::from(near[l] <= far[l] || t_max[l].is_nan()) << l;
+            let keep = load(&near).simd_le(load(&far)) | load(t_max).is_nan();
+            hit |= keep.to_bitmask() << c;
         }
         // Lanes that could not be tested pass.
         (hit & check) | (lanes & !self.testable)
