@@ -201,12 +201,16 @@ impl<const N: usize> PacketBoxes<N> {
             // `clip`'s `t0 > t1` rejection (a NaN bound does not reject).
             let miss = (outside | near.simd_gt(far)).to_bitmask();
             let hit = !miss & (lanes >> c) & 0xf;
-            let (near, far) = (near.to_array(), far.to_array());
-            for i in 0..4.min(N - c) {
-                let on = hit & (1 << i) != 0;
-                t0[c + i] = if on { near[i] } else { 0.0 };
-                t1[c + i] = if on { far[i] } else { 0.0 };
-            }
+            // PERF: each array written with one 16-byte store (the walk
+            // reads them back 16 bytes at a time at once; four lane stores
+            // would fail store forwarding); lanes off are `0.0`.
+            let on = f32x4::from(std::array::from_fn::<f32, 4, _>(|i| {
+                f32::from_bits(if hit & (1 << i) != 0 { u32::MAX } else { 0 })
+            }));
+            let (near, far) = ((near & on).to_array(), (far & on).to_array());
+            let n = 4.min(N - c);
+            t0[c..c + n].copy_from_slice(&near[..n]);
+            t1[c..c + n].copy_from_slice(&far[..n]);
             live |= hit << c;
         }
         (t0, t1, live)
