@@ -224,22 +224,26 @@ impl<T: Tracer> Shader<'_, T> {
     #[inline(always)]
     pub fn prepare(&self, ray: &Ray, cone: Cone, first: Option<&SceneHit>) -> Option<Prepared> {
         let scene = self.scene;
-        let mut ray = *ray;
+        // PERF: the ray is not copied; only a pass-through makes a new one
+        // (with the same direction).
+        let mut passed: Option<Ray> = None;
         let mut hit = first.copied();
         let mut passes = 0;
         let mut cone = cone;
         let surf = loop {
             let h = hit?;
-            cone.width = cone.width_at(&ray, h.t);
+            let cur = passed.as_ref().unwrap_or(ray);
+            cone.width = cone.width_at(cur, h.t);
             // NOTE: the tracer's hits come from this scene, so this never fails.
-            let surf = scene.own_surface(&ray, &h)?;
+            let surf = scene.own_surface(cur, &h)?;
             let mat = &scene.materials()[surf.material.index() as usize];
             if mat.one_sided && surf.geometric_normal.dot(ray.dir) > 0.0 && passes < MAX_PASS_THROUGH {
                 passes += 1;
                 // The ray leaves through the back: move along the normal, the side it goes to.
                 let o = offset_ray_origin(surf.point, surf.geometric_normal, surf.error_scale);
-                ray = Ray::new(o, ray.dir, 0.0, f32::INFINITY);
-                hit = self.tracer.intersect(&ray);
+                let next = Ray::new(o, ray.dir, 0.0, f32::INFINITY);
+                hit = self.tracer.intersect(&next);
+                passed = Some(next);
                 continue;
             }
             break surf;
