@@ -1,5 +1,6 @@
 //! Rendering: determinism across thread counts, refraction against Snell's
-//! law, and ray offsets that survive extreme scales and translations.
+//! law, ray offsets that survive extreme scales and translations, and
+//! one-sided surfaces passed through from behind.
 
 use std::sync::Arc;
 
@@ -345,4 +346,91 @@ fn a_tilted_slab_shifts_the_image_by_the_snell_displacement() {
         (shift.abs() - expected).abs() <= 1.5 * px,
         "shift {shift} vs {expected}"
     );
+}
+
+/// A wall behind an optional quad at z = 0 (`Some((one_sided, facing the
+/// camera))`), rendered GL-like and Whitted from z = 5.
+fn quad_before_wall(card: Option<(bool, bool)>, mode: RenderMode) -> Image {
+    let mut ctx = Context::new();
+    let green = ctx
+        .create_material(Material {
+            ambient: Vec3::new(0.1, 0.8, 0.2),
+            diffuse: Vec3::new(0.1, 0.8, 0.2),
+            ..Material::default()
+        })
+        .unwrap();
+    let wall = object(
+        &mut ctx,
+        &quad(
+            Vec3::new(-4.0, -4.0, -4.0),
+            Vec3::new(4.0, -4.0, -4.0),
+            Vec3::new(4.0, 4.0, -4.0),
+            Vec3::new(-4.0, 4.0, -4.0),
+        ),
+        green,
+    );
+    ctx.instantiate(wall).unwrap();
+    if let Some((one_sided, facing)) = card {
+        let blue = ctx
+            .create_material(Material {
+                ambient: Vec3::new(0.1, 0.2, 0.9),
+                diffuse: Vec3::new(0.1, 0.2, 0.9),
+                one_sided,
+                ..Material::default()
+            })
+            .unwrap();
+        let (a, b, c, d) = (
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        );
+        // Counter-clockwise seen from the camera: the normal faces it.
+        let tris = if facing { quad(a, b, c, d) } else { quad(a, d, c, b) };
+        let card = object(&mut ctx, &tris, blue);
+        ctx.instantiate(card).unwrap();
+    }
+    ctx.commit().unwrap();
+    let cam = Camera {
+        from: Vec3::new(0.0, 0.0, 5.0),
+        at: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 40.0,
+        near: 0.0,
+    };
+    let env = Environment {
+        lights: vec![PointLight {
+            position: Vec3::new(0.0, 0.0, 3.0),
+            color: Vec3::ONE,
+        }],
+        ambient: Vec3::splat(0.1),
+        background: Vec3::ZERO,
+    };
+    render(&ctx, &cam, env, 2, 64, 48, mode)
+}
+
+#[test]
+fn one_sided_back_faces_are_passed_through_and_front_faces_are_not() {
+    for mode in [RenderMode::GlLike, RenderMode::Whitted] {
+        let bare = quad_before_wall(None, mode);
+        let centre = |img: &Image| img.pixels[(24 * 64 + 32) as usize];
+        // Seen from behind, a one-sided card is passed through: the wall
+        // behind it is seen. GL-like, the image is the one without the card
+        // (the ray goes on from just behind it: the same wall, up to the
+        // rounding of the new ray's hit); in Whitted mode the card still
+        // casts its shadow on the wall.
+        let back = quad_before_wall(Some((true, false)), mode);
+        if mode == RenderMode::GlLike {
+            let (big, mean) = difference(&bare, &back);
+            assert!(big == 0.0 && mean < 1e-4, "{mode:?}: {big} {mean}");
+        }
+        let c = centre(&back);
+        assert!(c.y > c.z, "{mode:?}: the wall is seen, got {c}");
+        // Seen from the front, or two-sided either way, the card hides the wall.
+        for card in [(true, true), (false, false), (false, true)] {
+            let img = quad_before_wall(Some(card), mode);
+            let c = centre(&img);
+            assert!(c.z > c.y, "{mode:?} {card:?}: the card is seen, got {c}");
+        }
+    }
 }
