@@ -227,23 +227,24 @@ impl<T: Tracer> Shader<'_, T> {
         // PERF: the ray is not copied; only a pass-through makes a new one
         // (with the same direction).
         let mut passed: Option<Ray> = None;
-        let mut hit = first.copied();
+        let mut again: Option<SceneHit>;
+        let mut h = first?;
         let mut passes = 0;
         let mut cone = cone;
         let surf = loop {
-            let h = hit?;
             let cur = passed.as_ref().unwrap_or(ray);
             cone.width = cone.width_at(cur, h.t);
             // NOTE: the tracer's hits come from this scene, so this never fails.
-            let surf = scene.own_surface(cur, &h)?;
+            let surf = scene.own_surface(cur, h)?;
             let mat = &scene.materials()[surf.material.index() as usize];
             if mat.one_sided && surf.geometric_normal.dot(ray.dir) > 0.0 && passes < MAX_PASS_THROUGH {
                 passes += 1;
                 // The ray leaves through the back: move along the normal, the side it goes to.
                 let o = offset_ray_origin(surf.point, surf.geometric_normal, surf.error_scale);
                 let next = Ray::new(o, ray.dir, 0.0, f32::INFINITY);
-                hit = self.tracer.intersect(&next);
+                again = self.tracer.intersect(&next);
                 passed = Some(next);
+                h = again.as_ref()?;
                 continue;
             }
             break surf;
