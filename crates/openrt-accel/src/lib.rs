@@ -68,7 +68,7 @@ pub use hit::Hit;
 pub use kdnode::{KdNode, MAX_DEPTH};
 pub use kdtree::{BuilderKind, KdTree, TreeStats};
 pub use packet::{LANES_ENV, MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
-pub use packet_boxes::{BOX_SLACK, PacketBoxes};
+pub use packet_boxes::{BOX_SLACK, PacketBoxes, ray_reaches};
 pub use ray::Ray;
 pub use sah_build::{DEFAULT_BINNED_ABOVE, SahParams, default_max_depth};
 pub use toplevel::{BspBuilder, InstanceBsp};

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
-use openrt_accel::{InstanceBsp, PacketBoxes, Ray, Triangle, lanes_of, traverse, traverse_packet};
+use openrt_accel::{InstanceBsp, PacketBoxes, Ray, Triangle, lanes_of, ray_reaches, traverse, traverse_packet};
 
 use crate::instance::InstanceRecord;
 use crate::occluder_hint::{HINT_MARGIN, OccluderHint};
@@ -211,7 +211,18 @@ impl Scene {
                     continue;
                 }
                 *slot = i;
-                if test(i, &self.instances[i as usize], closest) {
+                let inst = &self.instances[i as usize];
+                // PERF: the world box first, from the world ray's own
+                // reciprocals, before the ray is moved into object space (a
+                // transform and six divisions) to miss the object's box
+                // there: a terrain ray met 51 instances, most of them so.
+                // NOTE: a ray that misses the box before `closest` misses
+                // the instance anywhere it could still count (`closest`
+                // only falls): it stays in the mailbox.
+                if !ray_reaches(&inst.world_bounds, ray, *closest) {
+                    continue;
+                }
+                if test(i, inst, closest) {
                     return true;
                 }
             }
