@@ -392,19 +392,28 @@ impl<T: Tracer> Shader<'_, T> {
         color
     }
 
-    /// Radiance along the `lanes` of a packet of rays (`depth` bounces so
-    /// far), each lane the bytes of [`Shader::trace`] on its ray: first hits
-    /// as a packet, then per light the shadow rays as a packet, then the
-    /// refraction rays and the reflection rays, each kind regrouped by
-    /// direction signs: when all `N` lanes survive with the same signs they
-    /// go on as a packet, otherwise one by one.
-    pub fn trace_packet<const N: usize>(
+    /// `true` when hits may trace reflection or refraction rays (Whitted
+    /// mode below a depth of 1).
+    pub fn traces_bounces(&self) -> bool {
+        self.mode == RenderMode::Whitted && self.max_depth > 0
+    }
+
+    /// The radiance of the `lanes` of a packet of rays (`depth` bounces so
+    /// far) up to their bounces, written to `block`: first hits as a packet,
+    /// then per light the shadow rays as a packet, then each lane's local
+    /// shading and the bounces it still traces ([`Shader::bounce_blocks`]
+    /// traces them). With its bounces, each lane's colour is the bytes of
+    /// [`Shader::trace`] on its ray.
+    // PERF: written in place: a block returned by value (3 KB with its
+    // bounces) made GL-like kitchen frames 3% slower.
+    pub fn shade_block<const N: usize>(
         &mut self,
         rays: &[Ray; N],
         cones: &[Cone; N],
         lanes: u32,
         depth: u32,
-    ) -> [Vec3; N] {
+        block: &mut ShadedBlock<N>,
+    ) {
         let hits = self.tracer.intersect_packet(rays, lanes);
         // PERF: filled in place (`from_fn` moved each lane's result twice).
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
@@ -432,60 +441,155 @@ impl<T: Tracer> Shader<'_, T> {
                 });
             }
         }
-        let mut color = [Vec3::ZERO; N];
-        let mut bounces: [Bounces; N] = [[None; 2]; N];
+        block.lanes = lanes;
         for l in lanes_of(lanes) {
-            match &preps[l] {
-                Some(p) => {
-                    color[l] = self.local(
-                        p,
-                        |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0),
-                        depth,
-                        &mut bounces[l],
-                    );
-                }
-                None => color[l] = self.env.background,
+            if let Some(p) = &preps[l] {
+                block.color[l] = self.local(
+                    p,
+                    |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0),
+                    depth,
+                    &mut block.bounces[l],
+                );
+                block.cones[l] = p.cone;
+            } else {
+                block.color[l] = self.env.background;
+                block.bounces[l] = [None; 2];
             }
         }
-        // NOTE: `k` is the kind of bounce (refraction, then reflection),
-        // taken across all lanes; each lane adds its bounces in that order.
-        #[allow(clippy::needless_range_loop)]
+    }
+
+    /// The bounces of shaded `blocks` ([`Shader::shade_block`]): their
+    /// refraction rays, then their reflection rays, each added to its lane's
+    /// colour in that order. Per block, the lanes of a kind that all
+    /// share direction signs go on as a packet; with `pool`, the others of
+    /// equal signs are pooled across the blocks (a tile's) and go on as
+    /// packets of up to `N` lanes, from [`POOLED_MIN`] lanes up; the rest go
+    /// alone. The packets of one depth are shaded together and their own
+    /// bounces traced the same way, depth by depth. Every lane gets the
+    /// bytes of [`Shader::trace`] either way: the same rays, and the same
+    /// sums in the same order.
+    pub fn bounce_blocks<const N: usize>(&mut self, blocks: &mut [ShadedBlock<N>], depth: u32, pool: bool) {
         for k in 0..2 {
-            // PERF: no packet of bounces to copy when no lane has one (every
-            // GL-like packet, most Whitted ones at their last depth).
-            if lanes_of(lanes).all(|l| bounces[l][k].is_none()) {
+            // The next depth's packets, each lane's (block, lane) beside it.
+            let mut rays_next: Vec<NextPacket<N>> = Vec::new();
+            let mut pooled: [Vec<(usize, usize)>; 8] = Default::default();
+            for (bi, b) in blocks.iter_mut().enumerate() {
+                // PERF: no packet of bounces to copy when no lane has one
+                // (every GL-like packet, most Whitted ones at their last depth).
+                let Some(Some((_, filler))) = lanes_of(b.lanes)
+                    .find(|&l| b.bounces[l][k].is_some())
+                    .map(|l| b.bounces[l][k])
+                else {
+                    continue;
+                };
+                let mut next = [filler; N];
+                let mut mask = 0u32;
+                for l in lanes_of(b.lanes) {
+                    if let Some((_, r)) = b.bounces[l][k] {
+                        next[l] = r;
+                        mask |= 1 << l;
+                    }
+                }
+                // Regrouped by direction signs: when every lane of the
+                // packet has a bounce of this kind with the same signs (a
+                // mirror or a pane) it goes on as a packet.
+                // PERF: groups from a quarter of the lanes up made museum16k
+                // Whitted frames 6% slower than single rays (docs/PERFORMANCE.md).
+                let (groups, _) = sign_groups(&next, mask);
+                let mut alone = mask;
+                for g in groups.iter().copied().filter(|g| g.count_ones() as usize == N) {
+                    alone &= !g;
+                    rays_next.push((next, b.cones, g, std::array::from_fn(|l| (bi, l))));
+                }
+                if pool {
+                    for (gi, &g) in groups.iter().enumerate() {
+                        for l in lanes_of(g & alone) {
+                            pooled[gi].push((bi, l));
+                        }
+                        alone &= !g;
+                    }
+                }
+                for l in lanes_of(alone) {
+                    let c = self.trace(&next[l], b.cones[l], depth + 1);
+                    b.color[l] += b.bounces[l][k].map_or(Vec3::ZERO, |x| x.0) * c;
+                }
+            }
+            for group in &pooled {
+                for chunk in group.chunks(N) {
+                    if chunk.len() >= POOLED_MIN.min(N) {
+                        let (b0, l0) = chunk[0];
+                        let filler = blocks[b0].bounces[l0][k].map_or(Ray::infinite(Vec3::ZERO, Vec3::X), |x| x.1);
+                        let mut next = [filler; N];
+                        let mut cones = [blocks[b0].cones[l0]; N];
+                        let mut from = [(b0, l0); N];
+                        for (i, &(bi, l)) in chunk.iter().enumerate() {
+                            if let Some((_, r)) = blocks[bi].bounces[l][k] {
+                                next[i] = r;
+                            }
+                            cones[i] = blocks[bi].cones[l];
+                            from[i] = (bi, l);
+                        }
+                        rays_next.push((next, cones, u32::MAX >> (32 - chunk.len()), from));
+                    } else {
+                        for &(bi, l) in chunk {
+                            let b = &blocks[bi];
+                            let Some((w, r)) = b.bounces[l][k] else {
+                                continue;
+                            };
+                            let c = self.trace(&r, b.cones[l], depth + 1);
+                            blocks[bi].color[l] += w * c;
+                        }
+                    }
+                }
+            }
+            if rays_next.is_empty() {
                 continue;
             }
-            let mut next = *rays;
-            let mut next_cones = *cones;
-            let mut mask = 0u32;
-            for l in lanes_of(lanes) {
-                if let (Some((_, r)), Some(p)) = (bounces[l][k], &preps[l]) {
-                    next[l] = r;
-                    next_cones[l] = p.cone;
-                    mask |= 1 << l;
+            let mut next_blocks: Vec<ShadedBlock<N>> = Vec::with_capacity(rays_next.len());
+            for (rays, cones, lanes, _) in &rays_next {
+                next_blocks.push(ShadedBlock::new());
+                if let Some(b) = next_blocks.last_mut() {
+                    self.shade_block(rays, cones, *lanes, depth + 1, b);
                 }
             }
-            // Regrouped by direction signs: only when every lane of the
-            // packet has a bounce of this kind with the same signs (a
-            // mirror or a pane) does it go on as a packet; the rest go alone.
-            // PERF: groups from a quarter of the lanes up made museum16k
-            // Whitted frames 6% slower than single rays (docs/PERFORMANCE.md).
-            let (groups, _) = sign_groups(&next, mask);
-            let mut alone = mask;
-            for g in groups.into_iter().filter(|g| g.count_ones() as usize == N) {
-                alone &= !g;
-                let c = self.trace_packet(&next, &next_cones, g, depth + 1);
-                for l in lanes_of(g) {
-                    color[l] += bounces[l][k].map_or(Vec3::ZERO, |b| b.0) * c[l];
+            self.bounce_blocks(&mut next_blocks, depth + 1, pool);
+            for (nb, (_, _, lanes, from)) in next_blocks.iter().zip(&rays_next) {
+                for i in lanes_of(*lanes) {
+                    let (bi, l) = from[i];
+                    let b = &mut blocks[bi];
+                    b.color[l] += b.bounces[l][k].map_or(Vec3::ZERO, |x| x.0) * nb.color[i];
                 }
-            }
-            for l in lanes_of(alone) {
-                let c = self.trace(&next[l], next_cones[l], depth + 1);
-                color[l] += bounces[l][k].map_or(Vec3::ZERO, |b| b.0) * c;
             }
         }
-        color
+    }
+}
+
+/// A packet of bounces for the next depth: its rays, their cones, its
+/// lanes, and the (block, lane) each lane's radiance goes back to.
+type NextPacket<const N: usize> = ([Ray; N], [Cone; N], u32, [(usize, usize); N]);
+
+/// Bounces of equal direction signs pooled across a tile's blocks go on as
+/// a packet from this many lanes up ([`Shader::bounce_blocks`]).
+pub(crate) const POOLED_MIN: usize = 8;
+
+/// A packet shaded up to its bounces ([`Shader::shade_block`]): each lane's
+/// local colour, the bounces it still traces, and the cone they carry.
+pub(crate) struct ShadedBlock<const N: usize> {
+    pub color: [Vec3; N],
+    pub bounces: [Bounces; N],
+    pub cones: [Cone; N],
+    pub lanes: u32,
+}
+
+impl<const N: usize> ShadedBlock<N> {
+    /// A block of no lanes, to be written by [`Shader::shade_block`].
+    pub fn new() -> Self {
+        Self {
+            color: [Vec3::ZERO; N],
+            bounces: [[None; 2]; N],
+            cones: [Cone::default(); N],
+            lanes: 0,
+        }
     }
 }
 
