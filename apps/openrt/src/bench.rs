@@ -153,6 +153,7 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
         }
     }
     let mut acc: Vec<Acc> = vec![Default::default(); 2 * renderers.len()];
+    let mut images: Vec<Image> = vec![Image::default(); 2 * renderers.len()];
     let (mut tri, mut inst) = (0, 0);
     // Commit and render on the same number of threads: each thread count
     // plays the sampled frames with a commit pool of its size.
@@ -170,15 +171,18 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
             let env = player.env();
             for (ri, (_, r)) in renderers.iter().enumerate().filter(|(_, (rt, _))| *rt == threads) {
                 for (mi, mode) in [RenderMode::GlLike, RenderMode::Whitted].into_iter().enumerate() {
-                    let (img, st) = r
-                        .render(&scene, &env, &cam, &settings(o, mode, 3))
+                    // Each backend and mode renders into its own image, as
+                    // `play` and an interactive loop do (the buffer reused).
+                    let img = &mut images[2 * ri + mi];
+                    let st = r
+                        .render_into(&scene, &env, &cam, &settings(o, mode, 3), img)
                         .map_err(|e| e.to_string())?;
                     // The first sampled frame's images on the fewest threads, against kd's.
                     if f == samples[0] && threads == o.threads[0] {
                         if r.backend() == Backend::Kd {
-                            kd_images.push(img);
+                            kd_images.push(img.clone());
                         } else if let Some(kd) = kd_images.get(mi) {
-                            let (identical, off_share) = image_diff(kd, &img);
+                            let (identical, off_share) = image_diff(kd, img);
                             diffs.push(ImageDiff {
                                 scene: name.to_string(),
                                 mode: ["GL-like", "Whitted"][mi],

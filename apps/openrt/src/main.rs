@@ -23,15 +23,17 @@ type Cluster = distributed::Cluster;
 #[cfg(not(feature = "mpi"))]
 enum Cluster {}
 
-/// Renders the current frame of `player` at time `t`: here, or on the
-/// cluster (its replicas get the change set of the player's last commit).
+/// Renders the current frame of `player` at time `t` into `img` (its
+/// buffer reused frame after frame): here, or on the cluster (its replicas
+/// get the change set of the player's last commit).
 fn render_frame(
     player: &mut ScenePlayer,
     t: f32,
     s: &RenderSettings,
     renderer: &Renderer,
     cluster: Option<&Cluster>,
-) -> Result<(Image, openrt_core::FrameStats, Option<serde_json::Value>), String> {
+    img: &mut Image,
+) -> Result<(openrt_core::FrameStats, Option<serde_json::Value>), String> {
     #[cfg(feature = "mpi")]
     if let Some(c) = cluster {
         let changes = player
@@ -39,7 +41,8 @@ fn render_frame(
             .take_changes()
             .ok_or("the scene's context does not record its changes")?;
         let scene = player.ctx().scene();
-        let (img, net) = c.render(&changes, &player.camera(t), &player.env(), s, Some((renderer, &scene)))?;
+        let (frame, net) = c.render(&changes, &player.camera(t), &player.env(), s, Some((renderer, &scene)))?;
+        *img = frame;
         let rays = openrt_core::RayCounts {
             primary: net.rays[0],
             shadow: net.rays[1],
@@ -61,14 +64,14 @@ fn render_frame(
             "bytes_gathered": net.bytes_gathered,
             "tiles_stolen": net.stolen,
         });
-        return Ok((img, stats, Some(figures)));
+        return Ok((stats, Some(figures)));
     }
     #[cfg(not(feature = "mpi"))]
     let _ = cluster;
-    let (img, st) = renderer
-        .render(&player.ctx().scene(), &player.env(), &player.camera(t), s)
+    let st = renderer
+        .render_into(&player.ctx().scene(), &player.env(), &player.camera(t), s, img)
         .map_err(|e| e.to_string())?;
-    Ok((img, st, None))
+    Ok((st, None))
 }
 
 /// Most frames `openrt bench --frames` samples per scene.
@@ -396,7 +399,8 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             let commit = player.set_time(t).map_err(|e| e.to_string())?;
             let s = settings(&player, &quality);
             let renderer = renderer(&mut player, &quality)?;
-            let (img, stats, net) = render_frame(&mut player, t, &s, &renderer, cluster)?;
+            let mut img = Image::default();
+            let (stats, net) = render_frame(&mut player, t, &s, &renderer, cluster, &mut img)?;
             save_png(&output, &img)?;
             if let Some(net) = net {
                 println!("distributed: {net}");
@@ -527,10 +531,12 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta} {msg}")
                     .map_err(|e| e.to_string())?,
             );
+            // One image for the whole run: its buffer is reused.
+            let mut img = Image::default();
             for f in range {
                 let t = player.time_of(f);
                 let c = player.set_time(t).map_err(|e| e.to_string())?;
-                let (img, st, net) = render_frame(&mut player, t, &s, &renderer, cluster)?;
+                let (st, net) = render_frame(&mut player, t, &s, &renderer, cluster, &mut img)?;
                 if let Some(dir) = &output {
                     save_png(&dir.join(format!("frame_{f:05}.png")), &img)?;
                 }

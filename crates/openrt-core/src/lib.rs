@@ -115,8 +115,8 @@ pub use occluder_hint::{HINT_MARGIN, OccluderHint};
 pub use pool::ThreadPool;
 pub use primitive::PrimitiveKind;
 pub use render::{
-    Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, packet_block, sample_offset,
-    tile_count,
+    Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, assemble_into, packet_block,
+    sample_offset, tile_count,
 };
 pub use scene::{Scene, SceneHit, Surface};
 pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, first_hit_shadow_ray, offset_ray_origin};
