@@ -492,9 +492,12 @@ impl<T: Tracer> Shader<'_, T> {
                 }
                 // Regrouped by direction signs: when every lane of the
                 // packet has a bounce of this kind with the same signs (a
-                // mirror or a pane) it goes on as a packet.
-                // PERF: groups from a quarter of the lanes up made museum16k
-                // Whitted frames 6% slower than single rays (docs/PERFORMANCE.md).
+                // mirror or a pane) it goes on as a packet; smaller groups
+                // are pooled with the tile's other blocks (with `pool`).
+                // PERF: packets from a quarter of one block's lanes up made
+                // museum16k Whitted frames 6% slower than single rays; pooled
+                // ones from 8 lanes up made the kitchen's 8% faster
+                // (docs/PERFORMANCE.md).
                 let (groups, _) = sign_groups(&next, mask);
                 let mut alone = mask;
                 for g in groups.iter().copied().filter(|g| g.count_ones() as usize == N) {
