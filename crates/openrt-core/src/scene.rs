@@ -192,8 +192,10 @@ impl Scene {
 
     /// The two-level walk shared by both queries: clip to the scene box,
     /// traverse the top-level BSP front to back, and call `test(index,
-    /// instance, closest)` once per instance per ray (mailbox). `test`
-    /// returns `true` to stop; the walk returns whether it was stopped.
+    /// instance, closest)` at most once per instance per ray (mailbox),
+    /// for the instances whose world box the ray may reach before
+    /// `closest` (`ray_reaches`). `test` returns `true` to stop; the walk
+    /// returns whether it was stopped.
     #[inline]
     fn walk<F>(&self, ray: &Ray, mut test: F) -> bool
     where
