@@ -622,41 +622,35 @@ fn packet_tile<const N: usize, T: Tracer>(
         }
     }
     let mut sum = vec![[Vec3::ZERO; N]; blocks.len()];
+    // PERF: without bounces (GL-like frames, depth 0) each block is shaded
+    // and summed at once in one block's space (a tile's blocks kept side by
+    // side made GL-like kitchen frames 2% slower); with them, the tile's
+    // blocks are shaded first, then their bounces traced together, so that
+    // bounces of equal direction signs from different blocks can share
+    // packets.
     let bounces = shader.traces_bounces();
-    if !bounces {
-        // PERF: no bounces (GL-like frames, depth 0): each block is shaded
-        // and summed at once, in one block's space (a tile's blocks kept
-        // side by side made GL-like kitchen frames 2% slower).
-        let mut out = ShadedBlock::new();
-        for &(ox, oy) in offsets {
-            for ((at, lanes), s) in blocks.iter().zip(&mut sum) {
-                let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray_at(at[l].0, at[l].1, ox, oy));
-                shader.counts.primary += u64::from(lanes.count_ones());
-                shader.shade_block(&rays, &cones, *lanes, 0, &mut out);
+    let mut shaded: Vec<ShadedBlock<N>> = Vec::new();
+    shaded.resize_with(if bounces { blocks.len() } else { 1 }, ShadedBlock::new);
+    for &(ox, oy) in offsets {
+        // One packet per block and sample: the block's rays through the
+        // same sub-pixel position stay coherent.
+        for (b, ((at, lanes), s)) in blocks.iter().zip(&mut sum).enumerate() {
+            let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray_at(at[l].0, at[l].1, ox, oy));
+            shader.counts.primary += u64::from(lanes.count_ones());
+            let out = &mut shaded[if bounces { b } else { 0 }];
+            shader.shade_block(&rays, &cones, *lanes, 0, out);
+            if !bounces {
                 for l in lanes_of(*lanes) {
                     s[l] += out.color[l];
                 }
             }
         }
-    }
-    let mut shaded: Vec<ShadedBlock<N>> = Vec::new();
-    if bounces {
-        shaded.resize_with(blocks.len(), ShadedBlock::new);
-    }
-    for &(ox, oy) in offsets.iter().filter(|_| bounces) {
-        // One packet per block and sample: the block's rays through the
-        // same sub-pixel position stay coherent. The blocks are shaded
-        // first, then their bounces traced together, so that bounces of
-        // equal direction signs from different blocks can share packets.
-        for ((at, lanes), out) in blocks.iter().zip(&mut shaded) {
-            let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray_at(at[l].0, at[l].1, ox, oy));
-            shader.counts.primary += u64::from(lanes.count_ones());
-            shader.shade_block(&rays, &cones, *lanes, 0, out);
-        }
-        shader.bounce_blocks(&mut shaded, 0, true);
-        for (s, b) in sum.iter_mut().zip(&shaded) {
-            for l in lanes_of(b.lanes) {
-                s[l] += b.color[l];
+        if bounces {
+            shader.bounce_blocks(&mut shaded, 0);
+            for (s, b) in sum.iter_mut().zip(&shaded) {
+                for l in lanes_of(b.lanes) {
+                    s[l] += b.color[l];
+                }
             }
         }
     }

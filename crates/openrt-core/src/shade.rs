@@ -458,22 +458,25 @@ impl<T: Tracer> Shader<'_, T> {
         }
     }
 
-    /// The bounces of shaded `blocks` ([`Shader::shade_block`]): their
-    /// refraction rays, then their reflection rays, each added to its lane's
-    /// colour in that order. Per block, the lanes of a kind that all
-    /// share direction signs go on as a packet; with `pool`, the others of
-    /// equal signs are pooled across the blocks (a tile's) and go on as
-    /// packets of up to `N` lanes, from [`POOLED_MIN`] lanes up; the rest go
-    /// alone. The packets of one depth are shaded together and their own
-    /// bounces traced the same way, depth by depth. Every lane gets the
-    /// bytes of [`Shader::trace`] either way: the same rays, and the same
-    /// sums in the same order.
-    pub fn bounce_blocks<const N: usize>(&mut self, blocks: &mut [ShadedBlock<N>], depth: u32, pool: bool) {
+    /// The bounces of shaded `blocks` ([`Shader::shade_block`], a tile's):
+    /// their refraction rays, then their reflection rays, each added to its
+    /// lane's colour in that order. Per block, the lanes of a kind that all
+    /// share direction signs go on as a packet; the others of equal signs
+    /// are pooled across the blocks and go on as packets of up to `N`
+    /// lanes, from [`POOLED_MIN`] lanes up; the rest go alone. The packets
+    /// of one depth are shaded together and their own bounces traced the
+    /// same way, depth by depth. Every lane gets the bytes of
+    /// [`Shader::trace`] either way: the same rays, and the same sums in the
+    /// same order.
+    pub fn bounce_blocks<const N: usize>(&mut self, blocks: &mut [ShadedBlock<N>], depth: u32) {
         for k in 0..2 {
             // The next depth's packets, each lane's (block, lane) beside it.
             let mut rays_next: Vec<NextPacket<N>> = Vec::new();
+            // By direction signs, the (block, lane) of bounces left out of
+            // their block's packets; then those that go alone.
             let mut pooled: [Vec<(usize, usize)>; 8] = Default::default();
-            for (bi, b) in blocks.iter_mut().enumerate() {
+            let mut alone: Vec<(usize, usize)> = Vec::new();
+            for (bi, b) in blocks.iter().enumerate() {
                 // PERF: no packet of bounces to copy when no lane has one
                 // (every GL-like packet, most Whitted ones at their last depth).
                 let Some(Some((_, filler))) = lanes_of(b.lanes)
@@ -493,57 +496,48 @@ impl<T: Tracer> Shader<'_, T> {
                 // Regrouped by direction signs: when every lane of the
                 // packet has a bounce of this kind with the same signs (a
                 // mirror or a pane) it goes on as a packet; smaller groups
-                // are pooled with the tile's other blocks (with `pool`).
+                // are pooled with the other blocks'.
                 // PERF: packets from a quarter of one block's lanes up made
                 // museum16k Whitted frames 6% slower than single rays; pooled
                 // ones from 8 lanes up made the kitchen's 8% faster
                 // (docs/PERFORMANCE.md).
-                let (groups, _) = sign_groups(&next, mask);
-                let mut alone = mask;
-                for g in groups.iter().copied().filter(|g| g.count_ones() as usize == N) {
-                    alone &= !g;
-                    rays_next.push((next, b.cones, g, std::array::from_fn(|l| (bi, l))));
-                }
-                if pool {
-                    for (gi, &g) in groups.iter().enumerate() {
-                        for l in lanes_of(g & alone) {
-                            pooled[gi].push((bi, l));
-                        }
-                        alone &= !g;
+                let (groups, zero) = sign_groups(&next, mask);
+                for (gi, &g) in groups.iter().enumerate() {
+                    if g.count_ones() as usize == N {
+                        rays_next.push((next, b.cones, g, std::array::from_fn(|l| (bi, l))));
+                    } else {
+                        pooled[gi].extend(lanes_of(g).map(|l| (bi, l)));
                     }
                 }
-                for l in lanes_of(alone) {
-                    let c = self.trace(&next[l], b.cones[l], depth + 1);
-                    b.color[l] += b.bounces[l][k].map_or(Vec3::ZERO, |x| x.0) * c;
-                }
+                alone.extend(lanes_of(zero).map(|l| (bi, l)));
             }
             for group in &pooled {
                 for chunk in group.chunks(N) {
-                    if chunk.len() >= POOLED_MIN.min(N) {
-                        let (b0, l0) = chunk[0];
-                        let filler = blocks[b0].bounces[l0][k].map_or(Ray::infinite(Vec3::ZERO, Vec3::X), |x| x.1);
-                        let mut next = [filler; N];
-                        let mut cones = [blocks[b0].cones[l0]; N];
-                        let mut from = [(b0, l0); N];
-                        for (i, &(bi, l)) in chunk.iter().enumerate() {
-                            if let Some((_, r)) = blocks[bi].bounces[l][k] {
-                                next[i] = r;
-                            }
-                            cones[i] = blocks[bi].cones[l];
-                            from[i] = (bi, l);
-                        }
-                        rays_next.push((next, cones, u32::MAX >> (32 - chunk.len()), from));
-                    } else {
-                        for &(bi, l) in chunk {
-                            let b = &blocks[bi];
-                            let Some((w, r)) = b.bounces[l][k] else {
-                                continue;
-                            };
-                            let c = self.trace(&r, b.cones[l], depth + 1);
-                            blocks[bi].color[l] += w * c;
-                        }
+                    if chunk.len() < POOLED_MIN.min(N) {
+                        alone.extend_from_slice(chunk);
+                        continue;
                     }
+                    let ray = |(bi, l): (usize, usize)| blocks[bi].bounces[l][k].map(|x| x.1);
+                    let Some(filler) = ray(chunk[0]) else {
+                        continue;
+                    };
+                    let mut next = [filler; N];
+                    let mut cones = [blocks[chunk[0].0].cones[chunk[0].1]; N];
+                    let mut from = [chunk[0]; N];
+                    for (i, &(bi, l)) in chunk.iter().enumerate() {
+                        next[i] = ray((bi, l)).unwrap_or(filler);
+                        cones[i] = blocks[bi].cones[l];
+                        from[i] = (bi, l);
+                    }
+                    rays_next.push((next, cones, u32::MAX >> (32 - chunk.len()), from));
                 }
+            }
+            for (bi, l) in alone {
+                let Some((w, r)) = blocks[bi].bounces[l][k] else {
+                    continue;
+                };
+                let c = self.trace(&r, blocks[bi].cones[l], depth + 1);
+                blocks[bi].color[l] += w * c;
             }
             if rays_next.is_empty() {
                 continue;
@@ -555,7 +549,7 @@ impl<T: Tracer> Shader<'_, T> {
                     self.shade_block(rays, cones, *lanes, depth + 1, b);
                 }
             }
-            self.bounce_blocks(&mut next_blocks, depth + 1, pool);
+            self.bounce_blocks(&mut next_blocks, depth + 1);
             for (nb, (_, _, lanes, from)) in next_blocks.iter().zip(&rays_next) {
                 for i in lanes_of(*lanes) {
                     let (bi, l) = from[i];
