@@ -77,6 +77,7 @@ mod context;
 #[cfg(feature = "embree")]
 mod embree_backend;
 mod error;
+mod highlight;
 mod ids;
 mod instance;
 mod light;

@@ -3,6 +3,7 @@
 use glam::{Vec3, Vec3A};
 use openrt_accel::{Ray, lanes_of, sign_groups};
 
+use crate::highlight::highlight_power;
 use crate::light_quad::{LightQuad, light_terms};
 use crate::tracer::Tracer;
 use crate::{Environment, OccluderHint, PointLight, Scene, SceneHit, Surface, TextureFilter};
@@ -344,6 +345,15 @@ impl<T: Tracer> Shader<'_, T> {
         let mut color = Vec3A::from(self.env.ambient * ka);
         for (q, quad) in self.light_quads.iter().enumerate() {
             let terms = light_terms(quad, surf.point, nf, ns, view);
+            // PERF: the four lights' highlight powers in one pass, no call
+            // (`highlight.rs`), and none when no lit light faces the mirror
+            // direction (the powers would all be zero).
+            let rdv = wide::f32x4::from(terms.rdv);
+            let power = if highlights && rdv.simd_gt(wide::f32x4::ZERO).to_bitmask() & terms.lit != 0 {
+                highlight_power(rdv, mat.shininess).to_array()
+            } else {
+                [0.0; 4]
+            };
             for i in lanes_of(terms.lit) {
                 let j = 4 * q + i;
                 if self.mode == RenderMode::Whitted && blocked(j) {
@@ -351,7 +361,7 @@ impl<T: Tracer> Shader<'_, T> {
                 }
                 let mut c = kd * terms.ndl[i].max(0.0);
                 if highlights {
-                    c += specular * terms.rdv[i].max(0.0).powf(mat.shininess);
+                    c += specular * power[i];
                 }
                 color += Vec3A::from(self.env.lights[j].color) * c;
             }
