@@ -63,6 +63,10 @@ pub struct Frustum {
     /// [`FRUSTUM_MARGIN`] times the largest coordinate of the apex and the
     /// lanes' origins: the positional slack of a shared-target frustum.
     slack: f32x4,
+    /// [`FRUSTUM_MARGIN`] times the square of `1 + |u| + |v|` at the
+    /// rectangle's farthest: the edge test's margin per unit of the
+    /// products' magnitude ([`Frustum::edges_apart`]).
+    edge_margin: f32x4,
 }
 
 impl Frustum {
@@ -240,6 +244,10 @@ impl Frustum {
             lo_v: f32x4::splat(lo_v - m),
             hi_v: f32x4::splat(hi_v + m),
             slack: f32x4::splat(FRUSTUM_MARGIN * scale),
+            edge_margin: {
+                let reach = 1.0 + (lo_u.abs().max(hi_u.abs()) + m) + (lo_v.abs().max(hi_v.abs()) + m);
+                f32x4::splat(FRUSTUM_MARGIN * reach * reach)
+            },
         })
     }
 
@@ -284,7 +292,8 @@ impl Frustum {
         let [k, a, b] = self.axes;
         let zero = f32x4::ZERO;
         let (mut front, mut hi_u, mut lo_u, mut hi_v, mut lo_v) = (ALL, ALL, ALL, ALL, ALL);
-        for vert in 0..3 {
+        let mut p = [[zero; 3]; 3];
+        for (vert, p) in p.iter_mut().enumerate() {
             // Relative to the origin, the dominant axis pointing forward:
             // the vertex projects to (x / z, y / z).
             let z = (block.coord(vert, k) - self.o[0]) * self.sign;
@@ -295,8 +304,57 @@ impl Frustum {
             lo_u &= x.simd_lt(self.lo_u * z);
             hi_v &= y.simd_gt(self.hi_v * z);
             lo_v &= y.simd_lt(self.lo_v * z);
+            *p = [z, x, y];
         }
-        (front & (hi_u | lo_u | hi_v | lo_v)).to_bitmask()
+        let beyond = (front & (hi_u | lo_u | hi_v | lo_v)).to_bitmask();
+        // PERF: a triangle reaching behind the origin has no projection to
+        // test; the edge test decides it (large walls and floors around the
+        // eye: most of a museum packet's leaf tests). Others skip it: where
+        // the projection test could decide, the edge test did not pay.
+        if front.to_bitmask() | beyond == 0xf {
+            return beyond;
+        }
+        beyond | self.edges_apart(&p).to_bitmask()
+    }
+
+    /// The triangles (vertices relative to the origin, `[z, x, y]`) whose
+    /// edges leave the rectangle on two sides: the plane through the
+    /// origin and one edge has the whole rectangle strictly on one side,
+    /// and the plane through another edge has it on the other. A line
+    /// through the origin meets a triangle only where its three edge
+    /// functions (Plücker products, linear in the direction) share a sign,
+    /// so no lane's ray meets these, whichever side of the origin the
+    /// triangle lies on. The edge function at a direction `(1, u, v)` is
+    /// `n_z + u n_x + v n_y`, `n` the cross product of the edge's end
+    /// points, so its least and largest values over the rectangle come
+    /// from the rectangle's bounds.
+    /// NOTE: a side counts only when it clears a margin of
+    /// [`FRUSTUM_MARGIN`] of the products' magnitude (the end points'
+    /// largest coordinates multiplied, times the square of the rectangle's
+    /// reach `1 + |u| + |v|`), far more than the rounding of these products
+    /// and of the lanes' own edge functions; an infinite or NaN value
+    /// decides nothing.
+    #[inline]
+    fn edges_apart(&self, p: &[[f32x4; 3]; 3]) -> f32x4 {
+        let none = f32x4::ZERO;
+        let (mut pos, mut neg) = (none, none);
+        let mag = p.map(|[z, x, y]| z.abs().fast_max(x.abs()).fast_max(y.abs()));
+        for i in 0..3 {
+            let j = (i + 1) % 3;
+            let ([pz, px, py], [qz, qx, qy]) = (p[i], p[j]);
+            let nz = px * qy - py * qx;
+            let nx = py * qz - pz * qy;
+            let ny = pz * qx - px * qz;
+            let (u0, u1) = (self.lo_u * nx, self.hi_u * nx);
+            let (v0, v1) = (self.lo_v * ny, self.hi_v * ny);
+            let most = nz + u0.fast_max(u1) + v0.fast_max(v1);
+            let least = nz + u0.fast_min(u1) + v0.fast_min(v1);
+            let margin = self.edge_margin * mag[i] * mag[j];
+            let sure = margin.is_finite() & most.is_finite() & least.is_finite();
+            pos |= sure & least.simd_gt(margin);
+            neg |= sure & most.simd_lt(-margin);
+        }
+        pos & neg
     }
 
     /// [`Frustum::rejects`] for a shared-target frustum (shadow rays): the
@@ -546,6 +604,68 @@ mod tests {
             let (rejected, total) = check_triangles(eye, at, k as u64);
             assert!(rejected * 2 > total, "only {rejected} of {total} culled");
         }
+    }
+
+    /// Triangles reaching behind the eye, which the projection test cannot
+    /// decide: the edge test rejects only triangles every lane misses,
+    /// including those with an edge along a lane's own ray (zero edge
+    /// function) or a vertex on it, and rejects most of the far-off ones.
+    #[test]
+    fn triangles_around_the_eye_are_rejected_only_when_missed() {
+        let mut rng = SmallRng::seed_from_u64(17);
+        let mut n_behind = 0;
+        for (eye, at) in [
+            (Vec3::new(0.2, 1.0, 0.5), Vec3::new(0.0, 0.8, -5.0)),
+            (Vec3::splat(2.0e4), Vec3::splat(2.0e4) + Vec3::new(0.3, -0.1, -1.0)),
+        ] {
+            let packets = blocks(eye, at);
+            let (mut rejected, mut total) = (0, 0);
+            for p in &packets {
+                let f = Frustum::new(p, u32::from(u16::MAX)).expect("camera lanes share an origin");
+                let mut tris: Vec<Triangle> = (0..40)
+                    .map(|_| {
+                        let mut v = || {
+                            eye + Vec3::new(
+                                rng.random_range(-6.0..6.0),
+                                rng.random_range(-3.0..3.0),
+                                rng.random_range(-8.0..4.0),
+                            )
+                        };
+                        [v(), v(), v()]
+                    })
+                    .collect();
+                // An edge along a lane's ray, through the eye; a vertex on
+                // a lane's ray with the others behind the eye.
+                let r = &p[rng.random_range(0..16)];
+                tris.push([eye + r.dir * 3.0, eye - r.dir * 2.0, eye + Vec3::new(4.0, 0.0, 1.0)]);
+                tris.push([
+                    eye + r.dir * 5.0,
+                    eye + Vec3::new(-1.0, 2.0, 3.0),
+                    eye + Vec3::new(1.0, -2.0, 2.0),
+                ]);
+                for chunk in (0..tris.len() as u32).collect::<Vec<_>>().chunks(4) {
+                    let mask = f.rejects(&TriBlock::pack(chunk, &tris));
+                    for (j, &id) in chunk.iter().enumerate() {
+                        let t = &tris[id as usize];
+                        let reaches_back = t.iter().any(|v| (*v - eye).dot(at - eye) < 0.0);
+                        total += 1;
+                        n_behind += usize::from(reaches_back);
+                        if mask & (1 << j) == 0 {
+                            continue;
+                        }
+                        rejected += 1;
+                        for r in p {
+                            assert!(
+                                intersect_triangle(r, t, f32::INFINITY).is_none(),
+                                "triangle {t:?} rejected but hit"
+                            );
+                        }
+                    }
+                }
+            }
+            assert!(rejected * 2 > total, "only {rejected} of {total} rejected");
+        }
+        assert!(n_behind > 1000, "{n_behind} triangles reach behind the eye");
     }
 
     #[test]
