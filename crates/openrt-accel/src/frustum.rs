@@ -19,6 +19,7 @@
 
 use wide::f32x4;
 
+use crate::BoxQuad;
 use crate::leaf_blocks::TriBlock;
 use crate::packet::by_axis;
 use crate::{Ray, lanes_of};
@@ -278,6 +279,40 @@ impl Frustum {
             lo > (high * zlo).max(high * zhi) || hi < (low * zlo).min(low * zhi)
         };
         beyond(range(a), lu, hu) || beyond(range(b), lv, hv)
+    }
+
+    /// [`Frustum::rejects_box`] for the four boxes of `quad` at once (bit
+    /// `i` set: no lane reaches box `i`), with its operations lane by lane,
+    /// so the same answers.
+    #[must_use]
+    #[inline]
+    pub fn rejects_box_quad(&self, quad: &BoxQuad) -> u32 {
+        let [k, a, b] = self.axes;
+        let o = self.origin;
+        let (lo, hi) = (quad.min, quad.max);
+        let abs_max = |i: usize| lo[i].abs().fast_max(hi[i].abs());
+        // `max` over the box's corners and the origin, as the scalar
+        // `max_element` (finite boxes: no NaN to order).
+        let scale = abs_max(0)
+            .fast_max(abs_max(1))
+            .fast_max(abs_max(2))
+            .fast_max(f32x4::splat(o.abs().max_element()));
+        let slack = f32x4::splat(FRUSTUM_MARGIN) * scale;
+        let forward = self.sign.to_array()[0] > 0.0;
+        let range = |axis: usize| {
+            let oa = f32x4::splat(o[axis]);
+            let (l, h) = (lo[axis] - slack - oa, hi[axis] + slack - oa);
+            if forward { (l, h) } else { (-h, -l) }
+        };
+        let (zlo, zhi) = range(k);
+        // The scalar test's refusals: NaN or non-positive near depth, an
+        // infinite or NaN far one.
+        let ok = zlo.simd_gt(f32x4::ZERO) & zhi.is_finite();
+        let [lu, hu, lv, hv] = self.rect.map(f32x4::splat);
+        let beyond = |(l, h): (f32x4, f32x4), low: f32x4, high: f32x4| {
+            l.simd_gt((high * zlo).fast_max(high * zhi)) | h.simd_lt((low * zlo).fast_min(low * zhi))
+        };
+        (ok & (beyond(range(a), lu, hu) | beyond(range(b), lv, hv))).to_bitmask()
     }
 
     /// Bit `j` set: no lane can hit triangle `j` of `block`. For a frustum of
@@ -666,6 +701,63 @@ mod tests {
             assert!(rejected * 2 > total, "only {rejected} of {total} rejected");
         }
         assert!(n_behind > 1000, "{n_behind} triangles reach behind the eye");
+    }
+
+    /// Four boxes at a time, the frustum answers as it does box by box:
+    /// camera and shadow frusta, boxes in front, behind, around the apex,
+    /// flat, far off and huge, partial quads.
+    #[test]
+    fn box_quads_answer_as_single_boxes() {
+        let mut rng = SmallRng::seed_from_u64(23);
+        let eye = Vec3::new(0.1, 0.5, 2.0);
+        let light = Vec3::new(2.0, 4.0, 1.0);
+        let (mut rejected, mut n) = (0, 0);
+        for p in blocks(eye, Vec3::new(0.3, -0.2, -5.0)).iter().step_by(3) {
+            let shadow = shadow_packet(p, light, &mut rng);
+            let frusta = [
+                Frustum::new(p, u32::from(u16::MAX)).unwrap(),
+                Frustum::toward(&shadow, u32::from(u16::MAX), light).unwrap(),
+            ];
+            for f in &frusta {
+                let boxes: Vec<Aabb> = (0..22)
+                    .map(|i| {
+                        let c = eye
+                            + Vec3::new(
+                                rng.random_range(-8.0..8.0),
+                                rng.random_range(-6.0..6.0),
+                                rng.random_range(-12.0..6.0),
+                            );
+                        let mut h = Vec3::new(
+                            rng.random_range(0.0..2.0),
+                            rng.random_range(0.0..2.0),
+                            rng.random_range(0.0..2.0),
+                        );
+                        match i % 7 {
+                            0 => h.y = 0.0,
+                            1 => return Aabb::new(eye - Vec3::splat(0.5), eye + Vec3::splat(0.5)),
+                            2 => return Aabb::new(c * 1e4, c * 1e4 + Vec3::splat(3e3)),
+                            _ => {}
+                        }
+                        Aabb::new(c - h, c + h)
+                    })
+                    .collect();
+                for chunk in boxes.chunks(4) {
+                    let mask = f.rejects_box_quad(&BoxQuad::pack(chunk));
+                    for (j, b) in chunk.iter().enumerate() {
+                        let want = f.rejects_box(b);
+                        assert_eq!(mask & (1 << j) != 0, want, "box {b:?}");
+                        rejected += usize::from(want);
+                        n += 1;
+                    }
+                    // Padding lanes repeat the last box's answer.
+                    let last = chunk.len() - 1;
+                    for j in chunk.len()..4 {
+                        assert_eq!(mask >> j & 1, mask >> last & 1);
+                    }
+                }
+            }
+        }
+        assert!(rejected * 4 > n && rejected < n, "{rejected} of {n} rejected");
     }
 
     #[test]

@@ -33,6 +33,7 @@
 
 mod aabb;
 mod binned_sah;
+mod box_quad;
 mod error;
 mod fast_build;
 mod frustum;
@@ -59,6 +60,7 @@ pub mod meshgen;
 pub mod oracle;
 
 pub use aabb::Aabb;
+pub use box_quad::BoxQuad;
 #[cfg(feature = "embree")]
 pub use embree_peer::{EmbreeMesh, EmbreeTwoLevel};
 pub use error::AccelError;

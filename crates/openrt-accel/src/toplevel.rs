@@ -22,7 +22,7 @@
 
 use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, shift_into, too_many_nodes};
 use crate::sah_build::default_max_depth;
-use crate::{Aabb, AccelError, BuilderKind, PARALLEL_MIN};
+use crate::{Aabb, AccelError, BoxQuad, BuilderKind, PARALLEL_MIN};
 
 /// A kd-tree over instance world boxes.
 #[derive(Clone, Debug, Default)]
@@ -31,6 +31,10 @@ pub struct InstanceBsp {
     items: Vec<u32>,
     bounds: Aabb,
     depth: usize,
+    /// Each leaf's boxes, four to a quad, leaf after leaf.
+    quads: Vec<BoxQuad>,
+    /// Per item offset, the first quad of the leaf whose list starts there.
+    quad_start: Vec<u32>,
 }
 
 impl InstanceBsp {
@@ -61,6 +65,18 @@ impl InstanceBsp {
     pub fn leaf_items(&self, leaf: KdNode) -> &[u32] {
         let off = leaf.prim_offset() as usize;
         &self.items[off..off + leaf.prim_count() as usize]
+    }
+
+    /// The boxes of a leaf's instances, four to a [`BoxQuad`], in the
+    /// order of [`InstanceBsp::leaf_items`] (the last quad padded with
+    /// repeats of the last box).
+    #[inline]
+    #[must_use]
+    pub fn leaf_box_quads(&self, leaf: KdNode) -> &[BoxQuad] {
+        let off = leaf.prim_offset() as usize;
+        let n = (leaf.prim_count() as usize).div_ceil(4);
+        let first = self.quad_start.get(off).map_or(usize::MAX, |&q| q as usize);
+        self.quads.get(first..first + n).unwrap_or(&[])
     }
 
     /// Union of the instance boxes (the root cell).
@@ -119,6 +135,15 @@ impl InstanceBsp {
                     if overlaps && !list.contains(&(j as u32)) {
                         return err(format!("box {j} overlaps leaf {i} but is not in it"));
                     }
+                }
+                // The leaf's quads hold its boxes in its order.
+                let quads = self.leaf_box_quads(n);
+                let want = list.chunks(4).map(|c| {
+                    let b: Vec<Aabb> = c.iter().filter_map(|&j| boxes.get(j as usize).copied()).collect();
+                    BoxQuad::pack(&b)
+                });
+                if quads.len() != list.len().div_ceil(4) || !quads.iter().zip(want).all(|(q, w)| q.same_bits(&w)) {
+                    return err(format!("leaf {i}: box quads differ from its boxes"));
                 }
                 continue;
             }
@@ -380,13 +405,35 @@ impl BspBuilder {
             }
             Some(top) => depth = assemble(top, &mut nodes, &mut items, &mut self.workers)?,
         }
+        let (quads, quad_start) = box_quads(&nodes, &items, boxes);
         Ok(InstanceBsp {
             nodes,
             items,
             bounds,
             depth,
+            quads,
+            quad_start,
         })
     }
+}
+
+/// Each leaf's boxes four to a quad, leaf after leaf, and where each
+/// leaf's quads start (indexed by the leaf's item offset).
+fn box_quads(nodes: &[KdNode], items: &[u32], boxes: &[Aabb]) -> (Vec<BoxQuad>, Vec<u32>) {
+    let mut quads = Vec::new();
+    let mut start = vec![u32::MAX; items.len() + 1];
+    let mut leaf_boxes = Vec::new();
+    for n in nodes.iter().filter(|n| n.is_leaf() && n.prim_count() > 0) {
+        let off = n.prim_offset() as usize;
+        let Some(list) = items.get(off..off + n.prim_count() as usize) else {
+            continue;
+        };
+        leaf_boxes.clear();
+        leaf_boxes.extend(list.iter().map(|&i| boxes[i as usize]));
+        start[off] = quads.len() as u32;
+        quads.extend(leaf_boxes.chunks(4).map(BoxQuad::pack));
+    }
+    (quads, start)
 }
 
 /// Fills `input` with the usable boxes (neither empty nor non-finite) as

@@ -440,28 +440,40 @@ impl Scene {
             &mut closest,
             |leaf, active, closest| {
                 let mut done = 0u32;
-                for &i in self.bsp.leaf_items(leaf) {
-                    let inst = &self.instances[i as usize];
+                let items = self.bsp.leaf_items(leaf);
+                let quads = self.bsp.leaf_box_quads(leaf);
+                for (q, four) in items.chunks(4).enumerate() {
                     // Instances whose world box no lane can reach (the
-                    // packet's frustum) are skipped for the whole packet.
-                    if frustum.is_some_and(|f| f.rejects_box(&inst.world_bounds)) {
-                        continue;
-                    }
-                    let slot = &mut mailbox[i as usize % MAILBOX];
-                    let met = if slot.0 == i { slot.1 } else { 0 };
-                    let fresh = active & !done & !met;
-                    *slot = (i, met | fresh);
-                    // NOTE: a lane that misses the world box misses the
-                    // instance anywhere: it stays in the mailbox.
-                    let fresh = if fresh == 0 {
-                        0
-                    } else {
-                        boxes.reaching(&inst.world_bounds, fresh, closest)
+                    // packet's frustum) are skipped for the whole packet,
+                    // four boxes at a time.
+                    let rejected = match (frustum, quads.get(q)) {
+                        (Some(f), Some(quad)) => f.rejects_box_quad(quad),
+                        (Some(f), None) => four.iter().enumerate().fold(0, |m, (j, &i)| {
+                            m | u32::from(f.rejects_box(&self.instances[i as usize].world_bounds)) << j
+                        }),
+                        (None, _) => 0,
                     };
-                    if fresh != 0 {
-                        done |= test(i, inst, fresh, closest, &boxes) & fresh;
-                        if done == active {
-                            break;
+                    for (j, &i) in four.iter().enumerate() {
+                        if rejected & (1 << j) != 0 {
+                            continue;
+                        }
+                        let inst = &self.instances[i as usize];
+                        let slot = &mut mailbox[i as usize % MAILBOX];
+                        let met = if slot.0 == i { slot.1 } else { 0 };
+                        let fresh = active & !done & !met;
+                        *slot = (i, met | fresh);
+                        // NOTE: a lane that misses the world box misses the
+                        // instance anywhere: it stays in the mailbox.
+                        let fresh = if fresh == 0 {
+                            0
+                        } else {
+                            boxes.reaching(&inst.world_bounds, fresh, closest)
+                        };
+                        if fresh != 0 {
+                            done |= test(i, inst, fresh, closest, &boxes) & fresh;
+                            if done == active {
+                                return done;
+                            }
                         }
                     }
                 }
