@@ -94,10 +94,12 @@ impl CameraRays {
     /// The primary ray through the point `(ox, oy)` of pixel `(x, y)`
     /// (`(0.5, 0.5)` is its centre: [`CameraRays::ray`]).
     #[must_use]
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
     pub fn ray_at(&self, x: u32, y: u32, ox: f32, oy: f32) -> Ray {
         let u = (x as f32 + ox) / self.width as f32 * 2.0 - 1.0;
         let v = 1.0 - (y as f32 + oy) / self.height as f32 * 2.0;
-        Ray::new(
+        Ray::new_inline(
             self.from,
             self.fwd + self.right * u + self.up * v,
             self.near,
