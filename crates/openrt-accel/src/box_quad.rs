@@ -32,12 +32,6 @@ impl BoxQuad {
         }
     }
 
-    /// The quads of `boxes`, four at a time.
-    #[must_use]
-    pub fn pack_all(boxes: &[Aabb]) -> Vec<Self> {
-        boxes.chunks(4).map(Self::pack).collect()
-    }
-
     /// `true` when both quads hold the same bits.
     #[must_use]
     pub(crate) fn same_bits(&self, other: &Self) -> bool {
@@ -65,7 +59,6 @@ mod tests {
                 assert_eq!(q.max[a].to_array()[i], boxes[want].max[a]);
             }
         }
-        assert_eq!(BoxQuad::pack_all(&[boxes[0]; 9]).len(), 3);
         assert!(q.same_bits(&BoxQuad::pack(&[boxes[0], boxes[1], boxes[1], boxes[1]])));
         assert!(!q.same_bits(&BoxQuad::pack(&[boxes[1], boxes[0]])));
     }

@@ -446,12 +446,11 @@ impl Scene {
                     // Instances whose world box no lane can reach (the
                     // packet's frustum) are skipped for the whole packet,
                     // four boxes at a time.
+                    // NOTE: every built tree has its leaves' quads (its
+                    // `validate` checks them); without one nothing is culled.
                     let rejected = match (frustum, quads.get(q)) {
                         (Some(f), Some(quad)) => f.rejects_box_quad(quad),
-                        (Some(f), None) => four.iter().enumerate().fold(0, |m, (j, &i)| {
-                            m | u32::from(f.rejects_box(&self.instances[i as usize].world_bounds)) << j
-                        }),
-                        (None, _) => 0,
+                        _ => 0,
                     };
                     for (j, &i) in four.iter().enumerate() {
                         if rejected & (1 << j) != 0 {
