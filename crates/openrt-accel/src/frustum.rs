@@ -255,8 +255,8 @@ impl Frustum {
     /// `true` when no lane can reach any point of `bounds` (an instance's
     /// world box): the box, widened by [`FRUSTUM_MARGIN`] of its largest
     /// coordinate (far more than the rounding of the transforms that take
-    /// rays to object space), lies in front of the origin and beyond one
-    /// side of the rectangle.
+    /// rays to object space), lies wholly behind the apex, or its part in
+    /// front of the apex lies beyond one side of the rectangle.
     #[must_use]
     pub fn rejects_box(&self, bounds: &crate::Aabb) -> bool {
         let [k, a, b] = self.axes;
@@ -271,9 +271,17 @@ impl Frustum {
             if s > 0.0 { (lo, hi) } else { (-hi, -lo) }
         };
         let (zlo, zhi) = range(k);
-        if zlo.is_nan() || zlo <= 0.0 || !zhi.is_finite() {
+        if zlo.is_nan() || !zhi.is_finite() {
             return false;
         }
+        // Every lane's reachable points lie in front of the apex (hits have
+        // `t > 0`; a shadow lane's segment ends at the apex): a box wholly
+        // behind it is out of reach, and one around it is reached, if at
+        // all, by its part in front.
+        if zhi <= 0.0 {
+            return true;
+        }
+        let zlo = if zlo > 0.0 { zlo } else { 0.0 };
         let [lu, hu, lv, hv] = self.rect;
         let beyond = |(lo, hi): (f32, f32), low: f32, high: f32| {
             lo > (high * zlo).max(high * zhi) || hi < (low * zlo).min(low * zhi)
@@ -305,14 +313,18 @@ impl Frustum {
             if forward { (l, h) } else { (-h, -l) }
         };
         let (zlo, zhi) = range(k);
-        // The scalar test's refusals: NaN or non-positive near depth, an
-        // infinite or NaN far one.
-        let ok = zlo.simd_gt(f32x4::ZERO) & zhi.is_finite();
+        // The scalar test's refusals: a NaN near depth, an infinite or NaN
+        // far one; then boxes wholly behind the apex, and the near depth of
+        // a box around it moved up to the apex.
+        let zero = f32x4::ZERO;
+        let ok = zlo.simd_eq(zlo) & zhi.is_finite();
+        let behind = zhi.simd_le(zero);
+        let zlo = zlo.simd_gt(zero).bitselect(zlo, zero);
         let [lu, hu, lv, hv] = self.rect.map(f32x4::splat);
         let beyond = |(l, h): (f32x4, f32x4), low: f32x4, high: f32x4| {
             l.simd_gt((high * zlo).fast_max(high * zhi)) | h.simd_lt((low * zlo).fast_min(low * zhi))
         };
-        (ok & (beyond(range(a), lu, hu) | beyond(range(b), lv, hv))).to_bitmask()
+        (ok & (behind | beyond(range(a), lu, hu) | beyond(range(b), lv, hv))).to_bitmask()
     }
 
     /// Bit `j` set: no lane can hit triangle `j` of `block`. For a frustum of
@@ -788,6 +800,78 @@ mod tests {
             }
         }
         assert!(culled * 2 > n, "only {culled} of {n} boxes culled");
+    }
+
+    /// Boxes behind the apex (the eye, or the light seen from the lanes'
+    /// origins) and around it: rejected when wholly behind, or when their
+    /// part in front lies beyond a side; never when a lane hits a triangle
+    /// in them. Counts each kind, so the test sees both.
+    #[test]
+    fn boxes_behind_and_around_the_apex() {
+        let mut rng = SmallRng::seed_from_u64(31);
+        let eye = Vec3::new(0.1, 0.5, 2.0);
+        let light = Vec3::new(2.0, 4.0, 1.0);
+        let packets = blocks(eye, Vec3::new(0.3, -0.2, -5.0));
+        let (mut behind, mut around, mut hit_around) = (0, 0, 0);
+        for p in packets.iter().step_by(2) {
+            let shadow = shadow_packet(p, light, &mut rng);
+            let frusta = [
+                (Frustum::new(p, u32::from(u16::MAX)).unwrap(), p, eye, Vec3::Z),
+                // Seen from the origins, the light's far side is behind it.
+                (
+                    Frustum::toward(&shadow, u32::from(u16::MAX), light).unwrap(),
+                    &shadow,
+                    light,
+                    (light - eye).normalize(),
+                ),
+            ];
+            for (f, rays, apex, back) in &frusta {
+                let centre = |rng: &mut SmallRng, depth: f32| {
+                    *apex
+                        + *back * depth
+                        + Vec3::new(
+                            rng.random_range(-3.0..3.0),
+                            rng.random_range(-3.0..3.0),
+                            rng.random_range(-3.0..3.0),
+                        )
+                };
+                for i in 0..60 {
+                    // Wholly behind, around the apex (some holding it), or
+                    // in front along the lanes (reached: the control).
+                    let far = rng.random_range(2.0..8.0);
+                    let c = match i % 3 {
+                        0 => centre(&mut rng, far),
+                        1 => centre(&mut rng, 0.0),
+                        _ => rays[rng.random_range(0..16)].origin + rays[rng.random_range(0..16)].dir * 0.5,
+                    };
+                    let b = Aabb::new(c - Vec3::splat(1.0), c + Vec3::splat(1.0));
+                    let tris = meshgen::random_soup(40, rng.random(), b, 0.8);
+                    let hit = rays
+                        .iter()
+                        .any(|r| tris.iter().any(|t| intersect_triangle(r, t, r.t_max).is_some()));
+                    let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t)));
+                    let rejected = f.rejects_box(&bounds);
+                    assert_eq!(f.rejects_box_quad(&BoxQuad::pack(&[bounds])) & 1 != 0, rejected);
+                    assert!(!(rejected && hit), "box {bounds:?} rejected but hit");
+                    let depth = |v: Vec3| (v - *apex).dot(f.sign.to_array()[0] * unit(f.axes[0]));
+                    let (lo, hi) = (depth(bounds.min), depth(bounds.max));
+                    if lo.max(hi) < 0.0 {
+                        behind += usize::from(rejected);
+                    } else if lo.min(hi) < 0.0 {
+                        around += usize::from(rejected);
+                        hit_around += usize::from(hit);
+                    }
+                }
+            }
+        }
+        assert!(
+            behind > 100 && around > 20 && hit_around > 5,
+            "{behind} behind, {around} around ({hit_around} hit)"
+        );
+    }
+
+    fn unit(axis: usize) -> Vec3 {
+        Vec3::AXES[axis]
     }
 
     #[test]
