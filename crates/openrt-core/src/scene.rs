@@ -170,7 +170,7 @@ impl Scene {
             found.is_some()
         });
         if found.is_some() {
-            hint.0 = found;
+            hint.leaf = found;
         }
         blocked
     }
@@ -179,7 +179,7 @@ impl Scene {
     /// ray's interval and inside the triangle ([`HINT_MARGIN`]): there, the
     /// walk would find a blocker too.
     fn hint_blocks(&self, hint: &OccluderHint, ray: &Ray) -> bool {
-        let Some((i, leaf)) = hint.0 else {
+        let Some((i, leaf)) = hint.leaf else {
             return false;
         };
         self.instances.get(i as usize).is_some_and(|inst| {
@@ -302,8 +302,11 @@ impl Scene {
 
     /// [`Scene::occluded_packet_toward`], trying the triangles of `hint`'s
     /// leaf first on every lane and keeping where a lane the walk answered
-    /// was blocked in it, as [`Scene::occluded_hinted`]. The same answer
-    /// whatever the hint holds.
+    /// was blocked in it, as [`Scene::occluded_hinted`], except while the
+    /// hint rests after tries that settled no lane ([`HINT_MAX_REST`]).
+    /// The same answer whatever the hint holds.
+    ///
+    /// [`HINT_MAX_REST`]: crate::HINT_MAX_REST
     #[must_use]
     pub fn occluded_packet_toward_hinted<const N: usize>(
         &self,
@@ -315,7 +318,7 @@ impl Scene {
         // The lanes' frustum serves the hint when its instance has no
         // transform, and then the walk too if the hint settled no lane.
         let world_hint = hint
-            .0
+            .leaf
             .and_then(|(i, _)| self.instances.get(i as usize))
             .is_some_and(|inst| inst.identity);
         let first = if world_hint {
@@ -323,7 +326,14 @@ impl Scene {
         } else {
             None
         };
-        let blocked = self.hint_blocks_packet(hint, rays, lanes, first.as_ref());
+        // A hint that keeps settling nothing rests for a few packets.
+        let blocked = if hint.packet_turn() {
+            let settled = self.hint_blocks_packet(hint, rays, lanes, first.as_ref());
+            hint.packet_tried(settled != 0);
+            settled
+        } else {
+            0
+        };
         let rest = lanes & !blocked;
         if rest == 0 {
             return blocked;
@@ -335,7 +345,7 @@ impl Scene {
         };
         let (more, found) = self.occluded_packet_in(rays, rest, frustum.as_ref());
         if found.is_some() {
-            hint.0 = found;
+            hint.leaf = found;
         }
         blocked | more
     }
@@ -349,7 +359,7 @@ impl Scene {
         lanes: u32,
         frustum: Option<&openrt_accel::Frustum>,
     ) -> u32 {
-        let Some((i, leaf)) = hint.0 else {
+        let Some((i, leaf)) = hint.leaf else {
             return 0;
         };
         let Some(inst) = self.instances.get(i as usize) else {
