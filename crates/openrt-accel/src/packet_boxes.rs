@@ -28,19 +28,19 @@ pub const BOX_SLACK: f32 = 1e-4;
 
 /// The lanes of a packet in structure-of-arrays order.
 pub struct PacketBoxes<const N: usize> {
-    o: [[f32; N]; 3],
-    inv: [[f32; N]; 3],
+    pub(crate) o: [[f32; N]; 3],
+    pub(crate) inv: [[f32; N]; 3],
     /// The directions (a zero component is decided by the origin alone).
     dir: [[f32; N]; 3],
-    t_min: [f32; N],
+    pub(crate) t_min: [f32; N],
     /// The rays' own far bounds (an invalid ray keeps its empty interval).
     t_max: [f32; N],
     /// Lanes whose ray is valid ([`Ray::is_valid`]).
     valid: u32,
     /// Lanes with three finite, non-zero reciprocal direction components.
-    testable: u32,
+    pub(crate) testable: u32,
     /// Largest coordinate of the lanes' origins.
-    scale: f32,
+    pub(crate) scale: f32,
 }
 
 impl<const N: usize> PacketBoxes<N> {

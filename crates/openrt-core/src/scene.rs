@@ -3,7 +3,9 @@
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
-use openrt_accel::{InstanceBsp, PacketBoxes, Ray, Triangle, lanes_of, ray_reaches, traverse, traverse_packet};
+use openrt_accel::{
+    InstanceBsp, PacketBoxes, PacketInterval, Ray, Triangle, lanes_of, ray_reaches, traverse, traverse_packet,
+};
 
 use crate::instance::InstanceRecord;
 use crate::occluder_hint::{HINT_MARGIN, OccluderHint};
@@ -441,6 +443,13 @@ impl Scene {
         // lane that meets an instance again (after its slot was taken)
         // finds the same hits, none of them closer.
         let mut mailbox = [(u32::MAX, 0u32); MAILBOX];
+        // Packets without a frustum (bounces: their origins differ) skip
+        // boxes by the intervals of their lanes instead.
+        let interval = if frustum.is_none() {
+            PacketInterval::new(&boxes, live)
+        } else {
+            None
+        };
         traverse_packet(
             self.bsp.nodes(),
             rays,
@@ -452,14 +461,25 @@ impl Scene {
                 let mut done = 0u32;
                 let items = self.bsp.leaf_items(leaf);
                 let quads = self.bsp.leaf_box_quads(leaf);
+                // The far bound of the lanes here (NaN, if a lane has one,
+                // rejects nothing).
+                let far = if interval.is_some() {
+                    lanes_of(active).fold(f32::NEG_INFINITY, |m, l| {
+                        let t = closest[l];
+                        if t > m || t.is_nan() { t } else { m }
+                    })
+                } else {
+                    f32::NAN
+                };
                 for (q, four) in items.chunks(4).enumerate() {
                     // Instances whose world box no lane can reach (the
                     // packet's frustum) are skipped for the whole packet,
                     // four boxes at a time.
                     // NOTE: every built tree has its leaves' quads (its
                     // `validate` checks them); without one nothing is culled.
-                    let rejected = match (frustum, quads.get(q)) {
-                        (Some(f), Some(quad)) => f.rejects_box_quad(quad),
+                    let rejected = match (frustum, &interval, quads.get(q)) {
+                        (Some(f), _, Some(quad)) => f.rejects_box_quad(quad),
+                        (None, Some(iv), Some(quad)) => iv.rejects_box_quad(quad, far),
                         _ => 0,
                     };
                     for (j, &i) in four.iter().enumerate() {
