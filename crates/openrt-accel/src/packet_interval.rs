@@ -115,6 +115,15 @@ mod tests {
     use super::*;
     use crate::{Aabb, Ray};
 
+    /// A vector with coordinates in `[-r, r)`.
+    fn jitter(rng: &mut SmallRng, r: f32) -> Vec3 {
+        Vec3::new(
+            rng.random_range(-r..r),
+            rng.random_range(-r..r),
+            rng.random_range(-r..r),
+        )
+    }
+
     /// Reflection-like packets: origins spread over a patch, directions in
     /// a cone; boxes near and far, around the origins, flat and huge.
     #[test]
@@ -123,29 +132,11 @@ mod tests {
         let (mut rejected, mut n, mut reached) = (0, 0, 0);
         for k in 0..400 {
             let spread = [0.01, 0.3, 3.0][k % 3];
-            let base = Vec3::new(
-                rng.random_range(-5.0..5.0),
-                rng.random_range(-5.0..5.0),
-                rng.random_range(-5.0..5.0),
-            );
-            let axis = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            );
+            let base = jitter(&mut rng, 5.0);
+            let axis = jitter(&mut rng, 1.0);
             let rays: [Ray; 16] = std::array::from_fn(|_| {
-                let o = base
-                    + Vec3::new(
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                    ) * spread;
-                let d = axis
-                    + Vec3::new(
-                        rng.random_range(-0.2..0.2),
-                        rng.random_range(-0.2..0.2),
-                        rng.random_range(-0.2..0.2),
-                    ) * spread;
+                let o = base + jitter(&mut rng, 1.0) * spread;
+                let d = axis + jitter(&mut rng, 0.2) * spread;
                 Ray::new(
                     o,
                     d,
@@ -173,11 +164,7 @@ mod tests {
             let boxes: Vec<Aabb> = (0..8)
                 .map(|i| {
                     // Half of them along the packet, the others anywhere.
-                    let off = Vec3::new(
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                    );
+                    let off = jitter(&mut rng, 1.0);
                     let c = if i % 2 == 0 {
                         base + axis.normalize() * rng.random_range(-2.0..12.0) + off * rng.random_range(0.0..3.0)
                     } else {
