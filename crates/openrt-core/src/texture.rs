@@ -196,12 +196,13 @@ impl Texture {
 /// without a call.
 ///
 /// PERF: the portable x86-64 build has no rounding instruction (SSE4.1), so
-/// `f32::floor` is a call to `floorf`: nine per trilinear sample, 2% of a
-/// GL-like kitchen frame in the call alone.
+/// `f32::floor` is a call to `floorf`: nine per trilinear sample, 4% of a
+/// robots GL-like frame and 2% of a kitchen one in the calls alone
+/// (docs/PERFORMANCE.md).
 #[inline]
 fn floor(x: f32) -> f32 {
-    // Every float of magnitude 2^23 or more is an integer (NaN and the
-    // infinities included, as `floor` returns them).
+    // Every float of magnitude 2^23 or more is an integer; NaN and the
+    // infinities come back as they are, as from `floor`.
     if x.is_nan() || x.abs() >= 8_388_608.0 {
         return x;
     }
