@@ -39,6 +39,27 @@ const EXP2_FIT: [f32; 7] = [
     0.000_154_697_32,
 ];
 
+/// The exponent `s log2 x` at or below which the light loop takes a
+/// highlight power as zero without computing it ([`zero_power_below`]):
+/// more than three units beyond the -126.5 where [`highlight_power`]
+/// rounds to the zero below the normal range, far more than the rounding
+/// of the product and the logarithm's 1e-8 error.
+const ZERO_POWER_EXPONENT: f32 = -130.0;
+
+/// The base at or below which [`highlight_power`] is exactly zero for the
+/// exponent `s` (a material's shininess): `2^(ZERO_POWER_EXPONENT / s)`. The
+/// light loop skips a quad of lights whose bases all lie there and gets the
+/// same bits. Zero (only bases facing away skipped) for an `s` that is not
+/// finite and positive, or below `130 / 149`, where the floor underflows.
+#[must_use]
+pub(crate) fn zero_power_below(s: f32) -> f32 {
+    if s.is_finite() && s > 0.0 {
+        (ZERO_POWER_EXPONENT / s).exp2()
+    } else {
+        0.0
+    }
+}
+
 /// `max(x, 0)^s` lane by lane, for a finite `s > 0` (a material's
 /// shininess): zero for a NaN, zero or negative `x`.
 #[must_use]
@@ -185,5 +206,42 @@ mod tests {
         assert_eq!(four[1], 0.0);
         assert_eq!(four[2], 1.0);
         assert!((four[0] - 0.25).abs() < 1e-7 && (four[3] - 0.0625).abs() < 1e-8);
+    }
+
+    #[test]
+    fn the_power_is_exactly_zero_at_and_below_its_floor() {
+        let p = |x: f32, s: f32| highlight_power(f32x4::splat(x), s).to_array()[0];
+        let mut rng = SmallRng::seed_from_u64(17);
+        let mut tried = 0;
+        for i in 0..100_000 {
+            // Shininess from 0.1 to 10,000, and the kitchen's own values.
+            let s: f32 = match i % 4 {
+                0 => 97.4304,
+                1 => 112.561_844,
+                _ => 10f32.powf(rng.random_range(-1.0..4.0)),
+            };
+            let floor = zero_power_below(s);
+            assert!((0.0..1.0).contains(&floor), "floor {floor} for {s}");
+            if floor == 0.0 {
+                // A small exponent: even the least base's power is not zero.
+                // (`2^(-130 / s)` is below the least subnormal for `s < 130 / 149`.)
+                assert!(s < 0.9, "no floor for {s}");
+                continue;
+            }
+            // At the floor, just below it, and anywhere below it.
+            let below = f32::from_bits(floor.to_bits() - 1);
+            for x in [floor, below, rng.random_range(0.0..floor), floor * 0.5] {
+                assert_eq!(p(x, s).to_bits(), 0, "{x}^{s} under the floor {floor}");
+                tried += 1;
+            }
+        }
+        assert!(tried > 330_000, "{tried}");
+        // The floor is not needlessly low: a little above it the power is
+        // still tiny but not zero for exponents whose powers stay normal.
+        assert!(p(zero_power_below(100.0) * 1.03, 100.0) > 0.0);
+        // No floor (nothing skipped) for exponents that are not positive and finite.
+        for s in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            assert_eq!(zero_power_below(s), 0.0);
+        }
     }
 }

@@ -503,6 +503,12 @@ fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) -> Vec<TileResult> {
         counts: RayCounts::default(),
         occluders: vec![OccluderHint::new(); job.env.lights.len()],
         light_quads: light_quads(&job.env.lights),
+        zero_power: job
+            .scene
+            .materials()
+            .iter()
+            .map(|m| crate::highlight::zero_power_below(m.shininess))
+            .collect(),
     };
     let spp = job.settings.spp.max(1);
     // Each sample's cone covers its share of the pixel.
