@@ -60,6 +60,20 @@ pub(crate) fn zero_power_below(s: f32) -> f32 {
     }
 }
 
+/// The highlight powers of a quad of lights for the light loop: lane `i`
+/// is `highlight_power(rdv, s)`'s where `lit` has bit `i` (the other lanes
+/// are never read), computed only when some lit lane's base lies above
+/// `floor` ([`zero_power_below`] of `s`, or 0): otherwise every lit lane's
+/// power is exactly zero, and zeros are returned without the arithmetic.
+#[inline]
+pub(crate) fn highlight_powers(rdv: f32x4, lit: u32, s: f32, floor: f32) -> [f32; 4] {
+    if rdv.simd_gt(f32x4::splat(floor)).to_bitmask() & lit != 0 {
+        highlight_power(rdv, s).to_array()
+    } else {
+        [0.0; 4]
+    }
+}
+
 /// `max(x, 0)^s` lane by lane, for a finite `s > 0` (a material's
 /// shininess): zero for a NaN, zero or negative `x`.
 #[must_use]
@@ -223,8 +237,9 @@ mod tests {
             let floor = zero_power_below(s);
             assert!((0.0..1.0).contains(&floor), "floor {floor} for {s}");
             if floor == 0.0 {
-                // A small exponent: even the least base's power is not zero.
-                // (`2^(-130 / s)` is below the least subnormal for `s < 130 / 149`.)
+                // A small exponent: its floor underflows (`2^(-130 / s)` is
+                // below the least subnormal for `s < 130 / 149`), so only
+                // bases facing away are skipped.
                 assert!(s < 0.9, "no floor for {s}");
                 continue;
             }
@@ -243,5 +258,45 @@ mod tests {
         for s in [0.0, -1.0, f32::NAN, f32::INFINITY] {
             assert_eq!(zero_power_below(s), 0.0);
         }
+    }
+
+    #[test]
+    fn the_light_loop_powers_are_the_same_bits_with_the_floor_and_without() {
+        let mut rng = SmallRng::seed_from_u64(23);
+        let mut skipped = 0;
+        for i in 0..200_000 {
+            let s: f32 = if i % 2 == 0 {
+                97.4304
+            } else {
+                10f32.powf(rng.random_range(-1.0..3.5))
+            };
+            let floor = zero_power_below(s);
+            // Bases around the floor and across the whole range, some NaN.
+            let rdv = f32x4::new(std::array::from_fn(|_| match rng.random_range(0..4) {
+                0 => floor * rng.random_range(0.5..1.5),
+                1 => rng.random_range(-1.0..=1.0),
+                2 => 1.0 - rng.random_range(0.0..0.01),
+                _ => {
+                    if rng.random_bool(0.1) {
+                        f32::NAN
+                    } else {
+                        rng.random_range(0.0..0.5)
+                    }
+                }
+            }));
+            let lit: u32 = rng.random_range(0..16);
+            let (with, without) = (highlight_powers(rdv, lit, s, floor), highlight_powers(rdv, lit, s, 0.0));
+            let exact = highlight_power(rdv, s).to_array();
+            for l in 0..4 {
+                if lit & (1 << l) != 0 {
+                    assert_eq!(with[l].to_bits(), without[l].to_bits(), "{rdv:?} lit {lit:b} ^{s}");
+                    assert_eq!(with[l].to_bits(), exact[l].to_bits());
+                }
+            }
+            let base = rdv.simd_gt(f32x4::ZERO).to_bitmask() & lit;
+            skipped += u32::from(base != 0 && rdv.simd_gt(f32x4::splat(floor)).to_bitmask() & lit == 0);
+        }
+        // The floor skips quads that facing away alone would not.
+        assert!(skipped > 10_000, "{skipped}");
     }
 }
