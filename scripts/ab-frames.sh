@@ -36,6 +36,11 @@ play() { # binary core dir
     taskset -c "$2" "$1" play "$path" --frames "$frames" --mode "$mode" --threads 1 \
         --width 640 --height 480 -o "$3" --stats "$3/stats.jsonl" > "$3/log" 2>&1
 }
+failed() { # binary dir
+    echo "ab-frames: $1 failed:" >&2
+    tail -3 "$2/log" >&2
+    exit 1
+}
 median() { # stats.jsonl -> median render_ms
     python3 -c 'import json,statistics,sys;print("%.2f"%statistics.median(json.loads(l)["render_ms"] for l in open(sys.argv[1])))' "$1"
 }
@@ -48,13 +53,8 @@ for r in $(seq "$rounds"); do
     fa=0 fb=0
     wait $pa || fa=1
     wait $pb || fb=1
-    for side in a:$fa:"$a" b:$fb:"$b"; do
-        if [ "${side:2:1}" = 1 ]; then
-            echo "ab-frames: ${side:4} failed:" >&2
-            tail -3 "$tmp/${side:0:1}/log" >&2
-            exit 1
-        fi
-    done
+    [ $fa = 0 ] || failed "$a" "$tmp/a"
+    [ $fb = 0 ] || failed "$b" "$tmp/b"
     for f in "$tmp"/a/*.png; do
         cmp -s "$f" "$tmp/b/$(basename "$f")" || echo "DIFF $(basename "$f")"
     done

@@ -341,6 +341,12 @@ impl<T: Tracer> Shader<'_, T> {
         let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
         let view = -d;
         let highlights = mat.shininess > 0.0 && mat.specular != Vec3::ZERO;
+        // The material's floor for its highlight powers, once per hit.
+        let floor = self
+            .zero_power
+            .get(surf.material.index() as usize)
+            .copied()
+            .unwrap_or(0.0);
         // PERF: the geometry of four lights at a time (`light_quad.rs`, the
         // scalar loop's bits); the sums stay in the lights' order, three
         // channels to a register (`Vec3A`: the same products and sums).
@@ -354,11 +360,6 @@ impl<T: Tracer> Shader<'_, T> {
             // (`zero_power_below`; 0, facing away, when it has none). The
             // floor made kitchen GL-like frames 1.5-4% faster.
             let power = if highlights {
-                let floor = self
-                    .zero_power
-                    .get(surf.material.index() as usize)
-                    .copied()
-                    .unwrap_or(0.0);
                 highlight_powers(wide::f32x4::from(terms.rdv), terms.lit, mat.shininess, floor)
             } else {
                 [0.0; 4]
