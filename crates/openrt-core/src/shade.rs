@@ -315,12 +315,7 @@ impl<T: Tracer> Shader<'_, T> {
         if mat.diffuse != Vec3::ZERO {
             return 0;
         }
-        let highlights = mat.shininess > 0.0 && mat.specular != Vec3::ZERO;
-        let floor = self
-            .zero_power
-            .get(surf.material.index() as usize)
-            .copied()
-            .unwrap_or(0.0);
+        let (highlights, floor) = self.highlights(surf);
         let mut silent = 0u64;
         for (q, quad) in self.light_quads.iter().enumerate().take(16) {
             let quiet = if highlights {
@@ -340,6 +335,18 @@ impl<T: Tracer> Shader<'_, T> {
             }
         }
         silent
+    }
+
+    /// Whether the material of `surf` has Phong highlights, and the floor
+    /// of their powers ([`crate::highlight::zero_power_below`], made once
+    /// per frame): the light loop's and [`Shader::silent_lights`]' shared
+    /// view of it.
+    #[inline]
+    fn highlights(&self, surf: &Surface) -> (bool, f32) {
+        let index = surf.material.index() as usize;
+        let mat = &self.scene.materials()[index];
+        let floor = self.zero_power.get(index).copied().unwrap_or(0.0);
+        (mat.shininess > 0.0 && mat.specular != Vec3::ZERO, floor)
     }
 
     /// The shadow ray towards `light` that Whitted mode traces for a
@@ -402,13 +409,7 @@ impl<T: Tracer> Shader<'_, T> {
             });
         let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
         let view = -d;
-        let highlights = mat.shininess > 0.0 && mat.specular != Vec3::ZERO;
-        // The material's floor for its highlight powers, once per hit.
-        let floor = self
-            .zero_power
-            .get(surf.material.index() as usize)
-            .copied()
-            .unwrap_or(0.0);
+        let (highlights, floor) = self.highlights(surf);
         // PERF: the geometry of four lights at a time (`light_quad.rs`, the
         // scalar loop's bits); the sums stay in the lights' order, three
         // channels to a register (`Vec3A`: the same products and sums).
