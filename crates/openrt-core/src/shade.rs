@@ -307,7 +307,7 @@ impl<T: Tracer> Shader<'_, T> {
     /// zero is NaN).
     ///
     /// PERF: a kitchen Whitted frame (400) traces 3.35 million shadow rays
-    /// instead of 3.80 million, the same bytes; frames 400..402 4.4% faster
+    /// instead of 3.80 million, the same bytes; frames 400..402 4-7% faster
     /// side by side (docs/PERFORMANCE.md). Other materials cost one compare.
     #[inline]
     fn silent_lights(&self, surf: &Surface, d: Vec3, nf: Vec3, ns: Vec3) -> u64 {
