@@ -728,7 +728,7 @@ mod tests {
     /// bumpy spheres with smooth normals (so shading and geometric normals
     /// differ) of materials without diffuse reflection (the kitchen's
     /// metals, broad highlights, no highlight) and one with it (never
-    /// silent), lit by six lights around them.
+    /// silent), lit by six lights around them, one of infinite colour.
     #[test]
     fn silent_lights_change_no_bit_of_the_colour() {
         use crate::{Context, Material, PrimitiveKind};
@@ -779,10 +779,12 @@ mod tests {
                 rng.random_range(-r..r),
             )
         };
+        // The last light's colour is infinite: never silent (its product
+        // with a zero is NaN, so blocking it does change the colour).
         let lights: Vec<PointLight> = (0..6)
-            .map(|_| PointLight {
+            .map(|j| PointLight {
                 position: centre(2) + around(6.0),
-                color: Vec3::splat(0.4),
+                color: Vec3::splat(if j == 5 { f32::INFINITY } else { 0.4 }),
             })
             .collect();
         let env = Environment {
