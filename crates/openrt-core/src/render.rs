@@ -11,7 +11,6 @@ use openrt_accel::{PacketWidth, Ray, lanes_of};
 use parking_lot::Mutex;
 
 use crate::camera::CameraRays;
-use crate::light_quad::light_quads;
 use crate::shade::{Cone, ShadedBlock, Shader};
 use crate::tracer::Tracer;
 use crate::{
@@ -493,23 +492,14 @@ fn render_tiles(job: &FrameJob) -> Vec<TileResult> {
 
 /// Takes tiles until none is left, tracing with `tracer`; returns them.
 fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) -> Vec<TileResult> {
-    let mut shader = Shader {
-        scene: &job.scene,
+    let mut shader = Shader::new(
+        &job.scene,
         tracer,
-        env: &job.env,
-        mode: job.settings.mode,
-        max_depth: job.settings.max_depth,
-        filter: job.settings.texture_filter,
-        counts: RayCounts::default(),
-        occluders: vec![OccluderHint::new(); job.env.lights.len()],
-        light_quads: light_quads(&job.env.lights),
-        zero_power: job
-            .scene
-            .materials()
-            .iter()
-            .map(|m| crate::highlight::zero_power_below(m.shininess))
-            .collect(),
-    };
+        &job.env,
+        job.settings.mode,
+        job.settings.max_depth,
+        job.settings.texture_filter,
+    );
     let spp = job.settings.spp.max(1);
     // Each sample's cone covers its share of the pixel.
     let cone = Cone {

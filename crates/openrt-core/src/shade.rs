@@ -136,6 +136,46 @@ pub(crate) struct Shader<'a, T: Tracer = Scene> {
     /// Per material, the base at or below which its highlight power is
     /// exactly zero (`highlight::zero_power_below`).
     pub zero_power: Vec<f32>,
+    /// Bit `j`: light `j` (of the first 64) has a finite colour, so a zero
+    /// times it is a zero ([`Shader::silent_lights`]).
+    pub finite_lights: u64,
+}
+
+impl<'a, T: Tracer> Shader<'a, T> {
+    /// A frame's shader: what it needs of the lights and materials made
+    /// once (light quads, highlight floors, finite light colours), no ray
+    /// counted yet, every light's last occluder empty.
+    pub fn new(
+        scene: &'a Scene,
+        tracer: &'a T,
+        env: &'a Environment,
+        mode: RenderMode,
+        max_depth: u32,
+        filter: TextureFilter,
+    ) -> Self {
+        Self {
+            scene,
+            tracer,
+            env,
+            mode,
+            max_depth,
+            filter,
+            counts: RayCounts::default(),
+            occluders: vec![OccluderHint::new(); env.lights.len()],
+            light_quads: crate::light_quad::light_quads(&env.lights),
+            zero_power: scene
+                .materials()
+                .iter()
+                .map(|m| crate::highlight::zero_power_below(m.shininess))
+                .collect(),
+            finite_lights: env
+                .lights
+                .iter()
+                .take(64)
+                .enumerate()
+                .fold(0, |m, (j, l)| m | (u64::from(l.color.is_finite()) << j)),
+        }
+    }
 }
 
 /// A ray cone (Akenine-Möller et al., "Texture Level of Detail Strategies
@@ -329,12 +369,7 @@ impl<T: Tracer> Shader<'_, T> {
             };
             silent |= quiet << (4 * q);
         }
-        for (j, light) in self.env.lights.iter().enumerate().take(64) {
-            if !light.color.is_finite() {
-                silent &= !(1 << j);
-            }
-        }
-        silent
+        silent & self.finite_lights
     }
 
     /// Whether the material of `surf` has Phong highlights, and the floor
@@ -791,22 +826,7 @@ mod tests {
             lights,
             ..Environment::default()
         };
-        let mut shader = Shader {
-            scene: &scene,
-            tracer: &*scene,
-            env: &env,
-            mode: RenderMode::Whitted,
-            max_depth: 0,
-            filter: TextureFilter::Trilinear,
-            counts: RayCounts::default(),
-            occluders: vec![OccluderHint::new(); env.lights.len()],
-            light_quads: crate::light_quad::light_quads(&env.lights),
-            zero_power: scene
-                .materials()
-                .iter()
-                .map(|m| crate::highlight::zero_power_below(m.shininess))
-                .collect(),
-        };
+        let mut shader = Shader::new(&scene, &*scene, &env, RenderMode::Whitted, 0, TextureFilter::Trilinear);
         let (mut silent, mut loud_changed, mut diffuse_silent) = (0, 0, 0);
         let mut rng = SmallRng::seed_from_u64(12);
         for _ in 0..20_000 {
