@@ -6,7 +6,7 @@ use crate::fast_build::{FastParams, build_fast};
 use crate::frustum::Frustum;
 use crate::kdnode::{KdNode, MAX_DEPTH, elide_empty_leaves};
 use crate::leaf_blocks::{
-    BlockRay, LANES, TriBlock, leaf_any, leaf_closest, leaf_occluder_where, leaf_packet, pack_leaves,
+    BlockRay, LANES, LeafLists, NO_TIE, TriBlock, leaf_any, leaf_closest, leaf_packet, pack_leaves,
 };
 use crate::packet::lanes_of;
 use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
@@ -48,15 +48,6 @@ fn packet_frustum<'a, const N: usize>(
         own.get_or_init(|| Frustum::new(rays, lanes).or_else(|| Frustum::ending(rays, lanes)))
             .as_ref()
     })
-}
-
-/// `true` when the hit `(t, b1, b2)` of `ray` lies at least `margin` inside
-/// the ray's finite interval (relative to its length) and inside the
-/// triangle (each barycentric coordinate).
-fn well_inside(ray: &Ray, (t, b1, b2): (f32, f32, f32), margin: f32) -> bool {
-    let span = ray.t_max - ray.t_min;
-    let m = margin * span;
-    span.is_finite() && t > ray.t_min + m && t < ray.t_max - m && b1 > margin && b2 > margin && 1.0 - b1 - b2 > margin
 }
 
 /// Each lane's own pre-test constants.
@@ -300,10 +291,13 @@ impl KdTree {
     #[inline]
     pub fn intersect_within(&self, ray: &Ray, closest: &mut f32) -> Option<Hit> {
         let (t0, t1) = self.bounds.clip(&ray.with_interval(ray.t_min, *closest))?;
-        let mut best = None;
+        let mut best: Option<Hit> = None;
         let br = BlockRay::new(ray);
         traverse(&self.nodes, ray, t0, t1, closest, |leaf, closest| {
-            if let Some((prim, (t, b1, b2))) = leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest) {
+            let tie = best.map_or(NO_TIE, |h| h.prim);
+            if let Some((prim, (t, b1, b2))) =
+                leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest, tie)
+            {
                 *closest = t;
                 best = Some(Hit { t, prim, b1, b2 });
             }
@@ -346,16 +340,7 @@ impl KdTree {
     /// interval is required.
     #[must_use]
     pub fn leaf_blocks(&self, ray: &Ray, leaf: KdNode, margin: f32) -> bool {
-        if !self.owns_leaf(leaf) {
-            return false;
-        }
-        let br = BlockRay::new(ray);
-        let mut inside = false;
-        leaf_occluder_where(ray, &br, leaf, &self.prim_ids, &self.blocks, |h| {
-            inside = well_inside(ray, h, margin);
-            inside
-        });
-        inside
+        self.lists().blocks_ray(ray, leaf, margin)
     }
 
     /// [`KdTree::leaf_blocks`] for the `lanes` of a packet: the lanes blocked
@@ -370,35 +355,15 @@ impl KdTree {
         margin: f32,
         frustum: Option<&Frustum>,
     ) -> u32 {
-        if !self.owns_leaf(leaf) || lanes == 0 {
-            return 0;
-        }
-        let Some(pbr) = PacketBlockRay::new(rays, lanes) else {
-            return lanes_of(lanes).fold(0, |m, l| m | (u32::from(self.leaf_blocks(&rays[l], leaf, margin)) << l));
-        };
-        let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
-        let mut got = 0u32;
-        // One leaf names no triangle twice: no mailbox.
-        self.leaf_packet(&pbr, rays, frustum, lanes, leaf, &mut closest, None, |h, _, _| {
-            for l in lanes_of(h.hit) {
-                if well_inside(&rays[l], h.lane(l), margin) {
-                    got |= 1 << l;
-                }
-            }
-            // Settled lanes leave; the others try the leaf's other triangles.
-            got & h.hit
-        });
-        got
+        self.lists().blocks_packet(rays, lanes, leaf, margin, frustum)
     }
 
-    /// `true` for a leaf node whose lists lie in this tree's.
-    fn owns_leaf(&self, leaf: KdNode) -> bool {
-        let (off, count) = (leaf.prim_offset() as usize, leaf.prim_count() as usize);
-        leaf.is_leaf()
-            && count > 0
-            && off.is_multiple_of(LANES)
-            && off + count.div_ceil(LANES) * LANES <= self.prim_ids.len()
-            && off / LANES + count.div_ceil(LANES) <= self.blocks.len()
+    /// The leaf lists, for the queries shared with the BVH.
+    fn lists(&self) -> LeafLists<'_> {
+        LeafLists {
+            ids: &self.prim_ids,
+            blocks: &self.blocks,
+        }
     }
 
     /// [`KdTree::intersect_within`] for the rays of the `lanes` mask at
@@ -452,6 +417,8 @@ impl KdTree {
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         let mut tested = TriMailbox::new();
+        // Each lane's best triangle in this walk, for the tie rule.
+        let mut ties = [NO_TIE; N];
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                 let f = packet_frustum(frustum, &own, rays, live);
@@ -462,6 +429,7 @@ impl KdTree {
                     active,
                     leaf,
                     closest,
+                    Some(&mut ties),
                     Some(&mut tested),
                     |h, prim, closest| {
                         for l in lanes_of(h.hit) {
@@ -478,8 +446,9 @@ impl KdTree {
             let brs = brs.get_or_insert_with(|| block_rays(rays));
             for l in lanes_of(active) {
                 if let Some((prim, (t, b1, b2))) =
-                    leaf_closest(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l])
+                    leaf_closest(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l], ties[l])
                 {
+                    ties[l] = prim;
                     closest[l] = t;
                     hits[l] = Some(Hit { t, prim, b1, b2 });
                     found |= 1 << l;
@@ -538,7 +507,8 @@ impl KdTree {
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                     let f = packet_frustum(frustum, &own, rays, live);
-                    let hit = self.leaf_packet(pbr, rays, f, active, leaf, closest, Some(&mut tested), |h, _, _| h.hit);
+                    let hit =
+                        self.leaf_packet(pbr, rays, f, active, leaf, closest, None, Some(&mut tested), |h, _, _| h.hit);
                     if hit != 0 {
                         found = found.or(Some(leaf));
                     }
@@ -569,6 +539,7 @@ impl KdTree {
         lanes: u32,
         leaf: KdNode,
         closest: &mut [f32; N],
+        ties: Option<&mut [u32; N]>,
         tested: Option<&mut TriMailbox>,
         visit: impl FnMut(&LaneHits, u32, &mut [f32; N]) -> u32,
     ) -> u32 {
@@ -581,6 +552,7 @@ impl KdTree {
             &self.prim_ids,
             &self.blocks,
             closest,
+            ties,
             tested,
             visit,
         )
@@ -829,7 +801,7 @@ mod tests {
             // A blocked ray's own leaf: settles it unless its hits lie near
             // an edge or an end of the interval.
             if let Some(leaf) = tree.occluder(r) {
-                assert!(tree.owns_leaf(leaf));
+                assert!(tree.lists().owns(leaf));
             }
         }
         assert!(settled > 100, "{settled} settlements");

@@ -208,8 +208,28 @@ fn padding(n: usize, k: usize) -> u32 {
     ((1u32 << LANES) - 1) & !((1u32 << real) - 1)
 }
 
-/// Tests the triangles of one leaf and returns the closest hit below
-/// `t_max` with its triangle index.
+/// `true` when a hit of triangle `prim` at `t` beats the walk's best so
+/// far, `(closest, tie)`: nearer, or at exactly the same distance on a
+/// triangle of lower index (the tie rule that makes every structure give
+/// the same answer where triangles overlap). `tie == NO_TIE`: no hit yet,
+/// any hit the kernel reports within the bound wins.
+#[inline]
+pub(crate) fn beats(t: f32, prim: u32, closest: f32, tie: u32) -> bool {
+    tie == NO_TIE || t < closest || (t == closest && prim < tie)
+}
+
+/// `tie` of a walk without a hit yet.
+pub(crate) const NO_TIE: u32 = u32::MAX;
+
+/// The kernel's bound for a walk at `(closest, tie)`: one step above a hit
+/// already found, so that an exact tie reaches [`beats`].
+#[inline]
+pub(crate) fn tie_bound(closest: f32, tie: u32) -> f32 {
+    if tie == NO_TIE { closest } else { closest.next_up() }
+}
+
+/// Tests the triangles of one leaf and returns the hit that beats the
+/// walk's best `(t_max, tie)` by [`beats`], with its triangle index.
 #[inline]
 pub(crate) fn leaf_closest(
     ray: &Ray,
@@ -218,11 +238,15 @@ pub(crate) fn leaf_closest(
     ids: &[u32],
     blocks: &[TriBlock],
     mut t_max: f32,
+    mut tie: u32,
 ) -> Option<(u32, TriHit)> {
     let mut best = None;
     for_each_candidate(br, leaf, ids, blocks, |p, tri| {
-        if let Some(h) = intersect_triangle(ray, tri, t_max) {
+        if let Some(h) = intersect_triangle(ray, tri, tie_bound(t_max, tie))
+            && beats(h.0, p, t_max, tie)
+        {
             t_max = h.0;
+            tie = p;
             best = Some((p, h));
         }
         false
@@ -275,6 +299,7 @@ pub(crate) fn leaf_packet<const N: usize>(
     ids: &[u32],
     blocks: &[TriBlock],
     closest: &mut [f32; N],
+    mut ties: Option<&mut [u32; N]>,
     mut tested: Option<&mut TriMailbox>,
     mut visit: impl FnMut(&LaneHits, u32, &mut [f32; N]) -> u32,
 ) -> u32 {
@@ -283,6 +308,13 @@ pub(crate) fn leaf_packet<const N: usize>(
     let n = leaf.prim_count() as usize;
     let count = n.div_ceil(LANES);
     let mut live = lanes;
+    // The kernel's bounds: each lane's `tie_bound` in a closest-hit walk.
+    let mut bound = *closest;
+    if let Some(ties) = ties.as_deref() {
+        for l in crate::packet::lanes_of(lanes) {
+            bound[l] = tie_bound(closest[l], ties[l]);
+        }
+    }
     for (k, b) in blocks[first..first + count].iter().enumerate() {
         // Triangles no lane can hit are skipped for the whole packet, and
         // so is the last block's padding.
@@ -301,19 +333,112 @@ pub(crate) fn leaf_packet<const N: usize>(
             if todo == 0 {
                 continue;
             }
-            let mut h = pbr.intersect_block(b, j, todo, closest);
+            let mut h = pbr.intersect_block(b, j, todo, &bound);
             if h.edge != 0 {
-                h.settle_edges(rays, &b.triangle(j), closest);
+                h.settle_edges(rays, &b.triangle(j), &bound);
+            }
+            if let Some(ties) = ties.as_deref_mut() {
+                // Only hits that beat the lane's best go on (the tie rule).
+                for l in crate::packet::lanes_of(h.hit) {
+                    if beats(h.lane(l).0, prim, closest[l], ties[l]) {
+                        ties[l] = prim;
+                    } else {
+                        h.hit &= !(1 << l);
+                    }
+                }
             }
             if h.hit != 0 {
                 live &= !visit(&h, prim, closest);
                 if live == 0 {
                     return lanes;
                 }
+                if ties.is_some() {
+                    for l in crate::packet::lanes_of(h.hit) {
+                        bound[l] = closest[l].next_up();
+                    }
+                }
             }
         }
     }
     lanes & !live
+}
+
+/// `true` when the hit `(t, b1, b2)` of `ray` lies at least `margin` inside
+/// the ray's finite interval (relative to its length) and inside the
+/// triangle (each barycentric coordinate).
+fn well_inside(ray: &Ray, (t, b1, b2): (f32, f32, f32), margin: f32) -> bool {
+    let span = ray.t_max - ray.t_min;
+    let m = margin * span;
+    span.is_finite() && t > ray.t_min + m && t < ray.t_max - m && b1 > margin && b2 > margin && 1.0 - b1 - b2 > margin
+}
+
+/// A tree's leaf lists (index array and blocks, as [`pack_leaves`] makes
+/// them), for the queries that kd-trees and BVHs share: the occluder
+/// hint's test of one leaf.
+#[derive(Clone, Copy)]
+pub(crate) struct LeafLists<'a> {
+    pub(crate) ids: &'a [u32],
+    pub(crate) blocks: &'a [TriBlock],
+}
+
+impl LeafLists<'_> {
+    /// `true` for a leaf whose range lies in these lists.
+    pub(crate) fn owns(&self, leaf: KdNode) -> bool {
+        let (off, count) = (leaf.prim_offset() as usize, leaf.prim_count() as usize);
+        leaf.is_leaf()
+            && count > 0
+            && off.is_multiple_of(LANES)
+            && off + count.div_ceil(LANES) * LANES <= self.ids.len()
+            && off / LANES + count.div_ceil(LANES) <= self.blocks.len()
+    }
+
+    /// `true` when a triangle of `leaf` blocks `ray` at least `margin`
+    /// inside its interval and inside the triangle; `false` for a leaf
+    /// these lists do not hold.
+    pub(crate) fn blocks_ray(&self, ray: &Ray, leaf: KdNode, margin: f32) -> bool {
+        if !self.owns(leaf) {
+            return false;
+        }
+        let br = BlockRay::new(ray);
+        let mut inside = false;
+        leaf_occluder_where(ray, &br, leaf, self.ids, self.blocks, |h| {
+            inside = well_inside(ray, h, margin);
+            inside
+        });
+        inside
+    }
+
+    /// [`LeafLists::blocks_ray`] for the `lanes` of a packet: the lanes
+    /// blocked so.
+    pub(crate) fn blocks_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        leaf: KdNode,
+        margin: f32,
+        frustum: Option<&Frustum>,
+    ) -> u32 {
+        if !self.owns(leaf) || lanes == 0 {
+            return 0;
+        }
+        let Some(pbr) = PacketBlockRay::new(rays, lanes) else {
+            return crate::packet::lanes_of(lanes)
+                .fold(0, |m, l| m | (u32::from(self.blocks_ray(&rays[l], leaf, margin)) << l));
+        };
+        let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
+        let mut got = 0u32;
+        // One leaf names no triangle twice: no mailbox.
+        leaf_packet(&pbr, rays, frustum, lanes, leaf, self.ids, self.blocks, &mut closest, None, None, |h, _, _| {
+            for l in crate::packet::lanes_of(h.hit) {
+                if well_inside(&rays[l], h.lane(l), margin) {
+                    got |= 1 << l;
+                }
+            }
+            // Settled lanes leave; the others try the leaf's other triangles.
+            got & h.hit
+        });
+        got
+    }
 }
 
 #[cfg(test)]
@@ -326,8 +451,12 @@ mod tests {
     /// The scalar loop the blocks replace.
     fn scalar_closest(ray: &Ray, list: &[u32], tris: &[Triangle], mut t_max: f32) -> Option<(u32, TriHit)> {
         let mut best = None;
+        let mut tie = NO_TIE;
         for &p in list {
-            if let Some(h) = intersect_triangle(ray, &tris[p as usize], t_max) {
+            if let Some(h) = intersect_triangle(ray, &tris[p as usize], tie_bound(t_max, tie))
+                && beats(h.0, p, t_max, tie)
+            {
+                tie = p;
                 t_max = h.0;
                 best = Some((p, h));
             }
@@ -397,7 +526,7 @@ mod tests {
                     for t_max in [ray.t_max, 1.5] {
                         let list = tree.leaf_primitives(leaf);
                         let want = scalar_closest(&ray, list, &tris, t_max);
-                        let got = leaf_closest(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, t_max);
+                        let got = leaf_closest(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, t_max, NO_TIE);
                         let bits = |h: Option<(u32, TriHit)>| {
                             h.map(|(p, (t, u, v))| (p, t.to_bits(), u.to_bits(), v.to_bits()))
                         };

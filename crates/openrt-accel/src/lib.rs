@@ -34,6 +34,7 @@
 mod aabb;
 mod binned_sah;
 mod box_quad;
+mod bvh;
 mod error;
 mod fast_build;
 mod frustum;
@@ -62,6 +63,9 @@ pub mod oracle;
 
 pub use aabb::Aabb;
 pub use box_quad::BoxQuad;
+pub use bvh::{
+    BVH_MAX_DEPTH, BVH_MAX_LEAF, BVH_MAX_PRIMITIVES, BVH_REFIT_COST_LIMIT, BVH_WIDTH, Bvh, BvhNode, BvhSlot, BvhStats,
+};
 #[cfg(feature = "embree")]
 pub use embree_peer::{EmbreeMesh, EmbreeTwoLevel};
 pub use error::AccelError;

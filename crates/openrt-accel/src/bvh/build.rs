@@ -1,0 +1,320 @@
+//! The binned SAH build of the wide BVH.
+//!
+//! Wald, "On fast construction of SAH-based bounding volume hierarchies"
+//! (IEEE RT 2007): triangles binned by their box centres into
+//! [`BINS`] bins per axis, the cheapest of the `3 (BINS - 1)` planes by the
+//! surface area heuristic. The wide node is grown directly (as collapsing a
+//! binary tree would, Wald et al. 2008): a node starts with its whole range
+//! as one child and splits its child of largest surface area until it has
+//! four or none can be split. Deep down (past [`MEDIAN_DEPTH`]) or where
+//! binning cannot separate the centres, the split is the median, so the
+//! depth stays logarithmic for any input. Subtrees of at least
+//! [`crate::PARALLEL_MIN`] triangles are built as tasks of the pool the build
+//! runs in.
+
+use glam::Vec3;
+
+use super::node::{BVH_WIDTH, BvhNode, LEAF_BIT};
+use crate::Aabb;
+
+/// Bins per axis.
+pub(crate) const BINS: usize = 16;
+
+/// Most triangles in a leaf (two blocks of four).
+pub const BVH_MAX_LEAF: usize = 8;
+
+/// Wide depth from which every split is the median.
+pub(crate) const MEDIAN_DEPTH: usize = 32;
+
+/// Cost of a node visit relative to one triangle block's test.
+const TRAVERSAL_COST: f32 = 1.0;
+
+/// A triangle as the builder sees it: box and index.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Ref {
+    pub(crate) lo: Vec3,
+    pub(crate) hi: Vec3,
+    pub(crate) id: u32,
+}
+
+impl Ref {
+    #[inline]
+    fn centre(&self) -> Vec3 {
+        (self.lo + self.hi) * 0.5
+    }
+}
+
+/// Bounds of a range of references.
+pub(crate) fn bounds_of(refs: &[Ref]) -> Aabb {
+    let (lo, hi) = refs
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| (l.min(r.lo), h.max(r.hi)));
+    Aabb { min: lo, max: hi }
+}
+
+/// Leaf cost of `n` triangles: blocks of four are tested at once.
+#[inline]
+fn leaf_cost(n: usize) -> f32 {
+    n.div_ceil(4) as f32
+}
+
+/// A candidate child of the node being grown.
+#[derive(Clone, Copy)]
+struct Kid {
+    start: usize,
+    end: usize,
+    bounds: Aabb,
+    leaf: bool,
+}
+
+/// Where to split a range: at `mid` after partitioning, or not at all.
+enum Split {
+    Leaf,
+    At(usize),
+}
+
+/// The best SAH split of `refs` (partitioned in place), or a leaf.
+fn split(refs: &mut [Ref], bounds: &Aabb, depth: usize) -> Split {
+    let n = refs.len();
+    if n <= 1 {
+        return Split::Leaf;
+    }
+    let (clo, chi) = refs
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| (l.min(r.centre()), h.max(r.centre())));
+    let ext = chi - clo;
+    if depth < MEDIAN_DEPTH
+        && let Some((axis, bin, cost)) = best_bin(refs, clo, ext)
+    {
+        let area = bounds.surface_area().max(f32::MIN_POSITIVE);
+        let split_cost = TRAVERSAL_COST + cost / area;
+        if n <= BVH_MAX_LEAF && split_cost >= leaf_cost(n) {
+            return Split::Leaf;
+        }
+        let scale = BINS as f32 / ext[axis];
+        let mid = partition(refs, |r| bin_of(r.centre()[axis], clo[axis], scale) <= bin);
+        if mid > 0 && mid < n {
+            return Split::At(mid);
+        }
+    } else if n <= 2 {
+        return Split::Leaf;
+    }
+    // The median along the widest spread of centres (or of the order
+    // given, when every centre is the same point).
+    let axis = if ext.max_element() > 0.0 { ext.max_position() } else { 0 };
+    let mid = n / 2;
+    refs.select_nth_unstable_by(mid, |a, b| a.centre()[axis].total_cmp(&b.centre()[axis]));
+    Split::At(mid)
+}
+
+#[inline]
+fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
+    (((c - lo) * scale) as usize).min(BINS - 1)
+}
+
+/// The cheapest binned plane: axis, last bin of the left side, and its
+/// cost `A_left N_left + A_right N_right` (in blocks). `None` when no axis
+/// separates the centres.
+fn best_bin(refs: &[Ref], clo: Vec3, ext: Vec3) -> Option<(usize, usize, f32)> {
+    let mut best: Option<(usize, usize, f32)> = None;
+    for axis in 0..3 {
+        if ext[axis] <= 0.0 || !ext[axis].is_finite() {
+            continue;
+        }
+        let scale = BINS as f32 / ext[axis];
+        let mut boxes = [Aabb::EMPTY; BINS];
+        let mut counts = [0usize; BINS];
+        for r in refs {
+            let b = bin_of(r.centre()[axis], clo[axis], scale);
+            counts[b] += 1;
+            boxes[b] = Aabb {
+                min: boxes[b].min.min(r.lo),
+                max: boxes[b].max.max(r.hi),
+            };
+        }
+        // Right-to-left sweep of the right sides' areas and counts.
+        let mut right_area = [0.0f32; BINS];
+        let mut right_n = [0usize; BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for b in (1..BINS).rev() {
+            acc = acc.union(boxes[b]);
+            n += counts[b];
+            right_area[b] = if n > 0 { acc.surface_area() } else { 0.0 };
+            right_n[b] = n;
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for b in 0..BINS - 1 {
+            acc = acc.union(boxes[b]);
+            n += counts[b];
+            if n == 0 || right_n[b + 1] == 0 {
+                continue;
+            }
+            let cost = acc.surface_area() * leaf_cost(n) + right_area[b + 1] * leaf_cost(right_n[b + 1]);
+            if best.is_none_or(|(_, _, c)| cost < c) {
+                best = Some((axis, b, cost));
+            }
+        }
+    }
+    best
+}
+
+/// Partitions `refs` so that those for which `left` holds come first;
+/// returns how many they are.
+fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
+    let mut i = 0;
+    let mut j = refs.len();
+    while i < j {
+        if left(&refs[i]) {
+            i += 1;
+        } else {
+            j -= 1;
+            refs.swap(i, j);
+        }
+    }
+    i
+}
+
+/// Grows the node's children: the range split at its child of largest
+/// area until there are [`BVH_WIDTH`] or none splits.
+fn grow(refs: &mut [Ref], bounds: Aabb, depth: usize) -> ([Kid; BVH_WIDTH], usize) {
+    let mut kids = [Kid {
+        start: 0,
+        end: 0,
+        bounds: Aabb::EMPTY,
+        leaf: true,
+    }; BVH_WIDTH];
+    kids[0] = Kid {
+        start: 0,
+        end: refs.len(),
+        bounds,
+        leaf: refs.len() <= 1,
+    };
+    let mut n = 1;
+    while n < BVH_WIDTH {
+        let Some(k) = (0..n)
+            .filter(|&k| !kids[k].leaf)
+            .max_by(|&a, &b| kids[a].bounds.surface_area().total_cmp(&kids[b].bounds.surface_area()))
+        else {
+            break;
+        };
+        let Kid { start, end, bounds, .. } = kids[k];
+        match split(&mut refs[start..end], &bounds, depth) {
+            Split::Leaf => kids[k].leaf = true,
+            Split::At(mid) => {
+                let (l, r) = (start..start + mid, start + mid..end);
+                let lb = bounds_of(&refs[l.clone()]);
+                let rb = bounds_of(&refs[r.clone()]);
+                kids[k] = Kid {
+                    start: l.start,
+                    end: l.end,
+                    bounds: lb,
+                    leaf: l.len() <= 1,
+                };
+                kids[n] = Kid {
+                    start: r.start,
+                    end: r.end,
+                    bounds: rb,
+                    leaf: r.len() <= 1,
+                };
+                n += 1;
+            }
+        }
+    }
+    // Children left unsplit at the width limit: small ones become leaves
+    // where the SAH says so (the partition it leaves behind is harmless).
+    for kid in &mut kids[..n] {
+        let count = kid.end - kid.start;
+        if !kid.leaf && count <= BVH_MAX_LEAF {
+            kid.leaf = matches!(split(&mut refs[kid.start..kid.end], &kid.bounds, depth + 1), Split::Leaf);
+        }
+    }
+    kids[..n].sort_by_key(|k| k.start);
+    (kids, n)
+}
+
+/// Builds the subtree of `refs` (whose first entry is entry `base` of the
+/// whole array) into `nodes`, its root first; leaves hold
+/// `LEAF_BIT | (base + start)` for now. Returns the deepest wide level.
+pub(crate) fn build_into(
+    refs: &mut [Ref],
+    base: usize,
+    bounds: Aabb,
+    depth: usize,
+    parallel: bool,
+    nodes: &mut Vec<BvhNode>,
+) -> usize {
+    let me = nodes.len();
+    nodes.push(BvhNode::empty());
+    let (kids, n) = grow(refs, bounds, depth);
+    let mut deepest = depth + 1;
+    let big = parallel
+        && kids[..n]
+            .iter()
+            .filter(|k| !k.leaf && k.end - k.start >= crate::PARALLEL_MIN)
+            .count()
+            > 1;
+    if big {
+        // The interior children as tasks, each into its own array,
+        // appended after with their indices moved.
+        let mut subs: Vec<(usize, Vec<BvhNode>, usize)> = Vec::new();
+        let mut rest: &mut [Ref] = refs;
+        let mut slices = Vec::new();
+        let mut at = 0;
+        for (i, k) in kids[..n].iter().enumerate() {
+            let (_, tail) = rest.split_at_mut(k.start - at);
+            let (mine, tail) = tail.split_at_mut(k.end - k.start);
+            rest = tail;
+            at = k.end;
+            if !k.leaf {
+                slices.push((i, mine));
+            }
+        }
+        let done: Vec<(usize, Vec<BvhNode>, usize)> = {
+            use rayon::prelude::*;
+            slices
+                .into_par_iter()
+                .map(|(i, mine)| {
+                    let k = kids[i];
+                    let mut sub = Vec::new();
+                    let d = build_into(mine, base + k.start, k.bounds, depth + 1, parallel, &mut sub);
+                    (i, sub, d)
+                })
+                .collect()
+        };
+        subs.extend(done);
+        for (i, k) in kids[..n].iter().enumerate() {
+            nodes[me].set_box(i, &k.bounds);
+            if k.leaf {
+                nodes[me].child[i] = LEAF_BIT | (base + k.start) as u32;
+                nodes[me].count[i] = (k.end - k.start) as u32;
+            }
+        }
+        for (i, sub, d) in subs {
+            let shift = nodes.len() as u32;
+            nodes[me].child[i] = shift;
+            deepest = deepest.max(d);
+            nodes.extend(sub.into_iter().map(|mut node| {
+                for c in &mut node.child {
+                    if *c & LEAF_BIT == 0 {
+                        *c += shift;
+                    }
+                }
+                node
+            }));
+        }
+        return deepest;
+    }
+    for (i, k) in kids[..n].iter().enumerate() {
+        nodes[me].set_box(i, &k.bounds);
+        if k.leaf {
+            nodes[me].child[i] = LEAF_BIT | (base + k.start) as u32;
+            nodes[me].count[i] = (k.end - k.start) as u32;
+        } else {
+            let child = nodes.len() as u32;
+            nodes[me].child[i] = child;
+            let d = build_into(&mut refs[k.start..k.end], base + k.start, k.bounds, depth + 1, parallel, nodes);
+            deepest = deepest.max(d);
+        }
+    }
+    deepest
+}

@@ -1,0 +1,472 @@
+//! The wide BVH: an object structure beside the kd-tree.
+//!
+//! Four children per node with their boxes in SIMD order (`node.rs`), a
+//! binned SAH build grown directly into wide nodes (`build.rs`), single-ray
+//! traversal testing a node's four boxes at once (`walk.rs`), and refits for
+//! deforming objects (`refit.rs`). Leaves reuse the kd-tree's triangle
+//! blocks and kernels, so a BVH finds the same hits, bit for bit, as a
+//! kd-tree over the same triangles (tested against each other and the f64
+//! oracle).
+//!
+//! Papers: Wald, Boulos & Shirley, *Ray tracing deformable scenes using
+//! dynamic bounding volume hierarchies* (ACM TOG 2007: BVHs refitted for
+//! deforming objects); Wald, *On fast construction of SAH-based bounding
+//! volume hierarchies* (IEEE RT 2007: binning); Wald, Benthin & Boulos,
+//! *Getting rid of packets* (IEEE RT 2008) and Ernst & Greiner, *Multi
+//! bounding volume hierarchies* (IEEE RT 2008: wide nodes for single rays).
+
+mod build;
+mod node;
+mod refit;
+mod walk;
+
+use std::time::Instant;
+
+pub use build::BVH_MAX_LEAF;
+pub use node::{BVH_MAX_DEPTH, BVH_WIDTH, BvhNode, BvhSlot};
+
+use crate::frustum::Frustum;
+use crate::kdnode::KdNode;
+use crate::leaf_blocks::{BlockRay, LANES, LeafLists, NO_TIE, TriBlock, leaf_any, leaf_closest};
+use crate::packet::lanes_of;
+use crate::triangle::is_valid_triangle;
+use crate::{Aabb, AccelError, Hit, PacketBoxes, Ray, Triangle};
+use build::{Ref, bounds_of, build_into};
+use node::{EMPTY_SLOT, LEAF_BIT};
+
+/// Most triangles a BVH takes: leaf offsets and node indices stay below
+/// bit 31 with room for the blocks' padding.
+pub const BVH_MAX_PRIMITIVES: usize = 1 << 28;
+
+/// Refits whose SAH cost grew past this factor of the last full build's are
+/// rebuilt afresh (as the kd-tree's refit does with its own limit).
+pub const BVH_REFIT_COST_LIMIT: f64 = 1.5;
+
+/// Largest tree validated automatically after its build in debug-assertion builds.
+#[cfg(debug_assertions)]
+const DEBUG_VALIDATE_LIMIT: usize = 20_000;
+
+/// Figures about a built BVH.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BvhStats {
+    /// Triangles given.
+    pub triangles: usize,
+    /// Triangles left out: zero area or non-finite vertices.
+    pub dropped: usize,
+    /// Wide nodes.
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Deepest wide level (the root is level 1).
+    pub depth: usize,
+    /// Build or refit time in milliseconds.
+    pub build_ms: f64,
+    /// Made by [`Bvh::refit`] from an earlier tree.
+    pub refitted: bool,
+    /// SAH cost (expected node visits and triangle blocks per ray).
+    pub sah_cost: f64,
+    /// SAH cost of the last full build in this tree's line of refits.
+    pub base_cost: f64,
+    /// Heap bytes: nodes, leaf indices, blocks and triangles.
+    pub bytes: usize,
+}
+
+/// A wide BVH over triangles (see the module docs). `Hit::prim` is the
+/// index of the triangle in the slice given to the builder.
+#[derive(Clone, Debug)]
+pub struct Bvh {
+    nodes: Vec<BvhNode>,
+    prim_ids: Vec<u32>,
+    blocks: Vec<TriBlock>,
+    tris: Vec<Triangle>,
+    bounds: Aabb,
+    stats: BvhStats,
+}
+
+/// Refuses more than [`BVH_MAX_PRIMITIVES`] triangles.
+fn check_count(count: usize) -> Result<(), AccelError> {
+    if count > BVH_MAX_PRIMITIVES {
+        return Err(AccelError::TooManyPrimitives {
+            count,
+            limit: BVH_MAX_PRIMITIVES,
+        });
+    }
+    Ok(())
+}
+
+/// The references of the valid triangles.
+fn refs_of(tris: &[Triangle]) -> Vec<Ref> {
+    tris.iter()
+        .enumerate()
+        .filter(|(_, t)| is_valid_triangle(t))
+        .map(|(i, t)| Ref {
+            lo: t[0].min(t[1]).min(t[2]),
+            hi: t[0].max(t[1]).max(t[2]),
+            id: i as u32,
+        })
+        .collect()
+}
+
+impl Bvh {
+    /// Builds a BVH with the binned SAH (`build.rs`); on a pool's thread,
+    /// large subtrees are built in parallel on that pool.
+    ///
+    /// Zero-area triangles and triangles with non-finite vertices are left
+    /// out (counted in [`BvhStats::dropped`]).
+    pub fn build(tris: Vec<Triangle>) -> Result<Self, AccelError> {
+        let start = Instant::now();
+        check_count(tris.len())?;
+        let mut refs = refs_of(&tris);
+        let bounds = bounds_of(&refs);
+        let mut nodes = Vec::with_capacity(refs.len() / 2 + 1);
+        let mut depth = 0;
+        if !refs.is_empty() {
+            let parallel = rayon::current_thread_index().is_some();
+            depth = build_into(&mut refs, 0, bounds, 0, parallel, &mut nodes);
+        }
+        let valid = refs.len();
+        let ids: Vec<u32> = refs.iter().map(|r| r.id).collect();
+        let (prim_ids, blocks, leaves) = pack(&mut nodes, &ids, &tris);
+        let mut bvh = Self {
+            nodes,
+            prim_ids,
+            blocks,
+            bounds,
+            stats: BvhStats {
+                triangles: tris.len(),
+                dropped: tris.len() - valid,
+                nodes: 0,
+                leaves,
+                depth,
+                build_ms: 0.0,
+                refitted: false,
+                sah_cost: 0.0,
+                base_cost: 0.0,
+                bytes: 0,
+            },
+            tris,
+        };
+        bvh.stats.sah_cost = bvh.sah_cost();
+        bvh.stats.base_cost = bvh.stats.sah_cost;
+        bvh.finish(start);
+        Ok(bvh)
+    }
+
+    /// Fills in the figures every build and refit reports, and checks the
+    /// tree in debug-assertion builds.
+    fn finish(&mut self, start: Instant) {
+        self.stats.nodes = self.nodes.len();
+        self.stats.bytes = size_of_val(self.nodes.as_slice())
+            + size_of_val(self.prim_ids.as_slice())
+            + size_of_val(self.blocks.as_slice())
+            + size_of_val(self.tris.as_slice());
+        self.stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        #[cfg(debug_assertions)]
+        if self.tris.len() <= DEBUG_VALIDATE_LIMIT
+            && let Err(e) = self.validate()
+        {
+            panic!("BVH build produced an invalid tree: {e}");
+        }
+    }
+
+    /// Bounds of the valid triangles.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The triangles, indexed by `Hit::prim`.
+    #[must_use]
+    pub fn triangles(&self) -> &[Triangle] {
+        &self.tris
+    }
+
+    /// Build figures.
+    #[must_use]
+    pub fn stats(&self) -> &BvhStats {
+        &self.stats
+    }
+
+    /// The flat node array (node 0 is the root).
+    #[must_use]
+    pub fn nodes(&self) -> &[BvhNode] {
+        &self.nodes
+    }
+
+    /// The triangle indices of a leaf (empty for a slot that is no leaf of
+    /// this tree).
+    #[must_use]
+    pub fn leaf_primitives(&self, slot: BvhSlot) -> &[u32] {
+        match slot {
+            BvhSlot::Leaf { offset, count } => self
+                .prim_ids
+                .get(offset as usize..offset as usize + count as usize)
+                .unwrap_or(&[]),
+            _ => &[],
+        }
+    }
+
+    /// SAH cost: expected node visits plus triangle blocks tested per ray
+    /// entering the root box.
+    #[must_use]
+    pub fn sah_cost(&self) -> f64 {
+        let root = f64::from(self.bounds.surface_area());
+        if self.nodes.is_empty() || root <= 0.0 || !root.is_finite() {
+            return 0.0;
+        }
+        let mut cost = 1.0;
+        for node in &self.nodes {
+            for i in 0..BVH_WIDTH {
+                let a = f64::from(node.child_box(i).surface_area()) / root;
+                match node.slot(i) {
+                    BvhSlot::Empty => {}
+                    BvhSlot::Node(_) => cost += a,
+                    BvhSlot::Leaf { count, .. } => cost += a * f64::from(count.div_ceil(LANES as u32)),
+                }
+            }
+        }
+        cost
+    }
+
+    /// The closest hit in `(ray.t_min, ray.t_max)`.
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut closest = ray.t_max;
+        self.intersect_within(ray, &mut closest)
+    }
+
+    /// The closest hit closer than `*closest` (which it lowers on a hit):
+    /// the answer of [`crate::KdTree::intersect_within`] over the same
+    /// triangles.
+    #[inline]
+    pub fn intersect_within(&self, ray: &Ray, closest: &mut f32) -> Option<Hit> {
+        self.bounds.clip(&ray.with_interval(ray.t_min, *closest))?;
+        let mut best: Option<Hit> = None;
+        let br = BlockRay::new(ray);
+        walk::walk(&self.nodes, ray, closest, |off, count, closest| {
+            let leaf = KdNode::leaf(off, count);
+            let tie = best.map_or(NO_TIE, |h| h.prim);
+            if let Some((prim, (t, b1, b2))) =
+                leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest, tie)
+            {
+                *closest = t;
+                best = Some(Hit { t, prim, b1, b2 });
+            }
+            false
+        });
+        best
+    }
+
+    /// `true` when anything is hit in `(ray.t_min, ray.t_max)` (shadow rays).
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.occluder(ray).is_some()
+    }
+
+    /// [`Bvh::occluded`] naming the leaf where the ray was blocked, as a
+    /// leaf node for [`Bvh::leaf_blocks`] (the occluder hints of shadow rays).
+    #[must_use]
+    pub fn occluder(&self, ray: &Ray) -> Option<KdNode> {
+        self.bounds.clip(ray)?;
+        let mut closest = ray.t_max;
+        let br = BlockRay::new(ray);
+        let mut found = None;
+        walk::walk(&self.nodes, ray, &mut closest, |off, count, closest| {
+            let leaf = KdNode::leaf(off, count);
+            let hit = leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest);
+            if hit {
+                found = Some(leaf);
+            }
+            hit
+        });
+        found
+    }
+
+    /// As [`crate::KdTree::leaf_blocks`], for a leaf that [`Bvh::occluder`] named.
+    #[must_use]
+    pub fn leaf_blocks(&self, ray: &Ray, leaf: KdNode, margin: f32) -> bool {
+        self.lists().blocks_ray(ray, leaf, margin)
+    }
+
+    /// As [`crate::KdTree::leaf_blocks_packet`].
+    #[must_use]
+    pub fn leaf_blocks_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        leaf: KdNode,
+        margin: f32,
+        frustum: Option<&Frustum>,
+    ) -> u32 {
+        self.lists().blocks_packet(rays, lanes, leaf, margin, frustum)
+    }
+
+    fn lists(&self) -> LeafLists<'_> {
+        LeafLists {
+            ids: &self.prim_ids,
+            blocks: &self.blocks,
+        }
+    }
+
+    /// [`Bvh::intersect_within`] for the `lanes` of a packet, with the
+    /// signature of [`crate::KdTree::intersect_packet_in`]: lane `l` gets
+    /// exactly `intersect_within(&rays[l], &mut closest[l])`. Each lane walks
+    /// the tree alone (the hybrid's single-ray path).
+    pub fn intersect_packet_in<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        closest: &mut [f32; N],
+        hits: &mut [Option<Hit>; N],
+        _frustum: Option<&Frustum>,
+        _laid_out: Option<&PacketBoxes<N>>,
+    ) -> u32 {
+        let mut found = 0;
+        for l in lanes_of(lanes) {
+            if let Some(h) = self.intersect_within(&rays[l], &mut closest[l]) {
+                hits[l] = Some(h);
+                found |= 1 << l;
+            }
+        }
+        found
+    }
+
+    /// [`Bvh::occluder`] for the `lanes` of a packet, with the signature of
+    /// [`crate::KdTree::occluder_packet_in`]: the blocked lanes and the leaf
+    /// where the first of them was blocked.
+    #[must_use]
+    pub fn occluder_packet_in<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        _frustum: Option<&Frustum>,
+        _laid_out: Option<&PacketBoxes<N>>,
+    ) -> (u32, Option<KdNode>) {
+        let mut blocked = 0;
+        let mut first = None;
+        for l in lanes_of(lanes) {
+            if let Some(leaf) = self.occluder(&rays[l]) {
+                blocked |= 1 << l;
+                first = first.or(Some(leaf));
+            }
+        }
+        (blocked, first)
+    }
+
+    /// Checks every invariant: nodes reached once each from the root, only
+    /// forward; child boxes holding their subtrees (leaf triangles' boxes
+    /// exactly); unused slots empty; leaves on block boundaries with 1 to
+    /// [`BVH_MAX_LEAF`] triangles, every valid triangle in exactly one leaf,
+    /// blocks equal to their triangles bit for bit; depth within
+    /// [`BVH_MAX_DEPTH`].
+    pub fn validate(&self) -> Result<(), AccelError> {
+        let bad = |m: String| Err(AccelError::Invalid(format!("BVH: {m}")));
+        let valid = self.tris.iter().filter(|t| is_valid_triangle(t)).count();
+        if self.nodes.is_empty() {
+            return if valid == 0 {
+                Ok(())
+            } else {
+                bad(format!("no nodes for {valid} valid triangles"))
+            };
+        }
+        let mut seen = vec![0u8; self.tris.len()];
+        let mut reached = vec![false; self.nodes.len()];
+        let mut stack = vec![(0u32, 1usize)];
+        reached[0] = true;
+        let mut deepest = 0;
+        while let Some((n, depth)) = stack.pop() {
+            deepest = deepest.max(depth);
+            if depth > BVH_MAX_DEPTH {
+                return bad(format!("depth {depth} exceeds {BVH_MAX_DEPTH}"));
+            }
+            let node = &self.nodes[n as usize];
+            for i in 0..BVH_WIDTH {
+                let b = node.child_box(i);
+                match node.slot(i) {
+                    BvhSlot::Empty => {
+                        if !(b.min.cmpeq(glam::Vec3::INFINITY).all() && b.max.cmpeq(glam::Vec3::NEG_INFINITY).all()) {
+                            return bad(format!("node {n} slot {i}: unused slot with a box {b:?}"));
+                        }
+                    }
+                    BvhSlot::Node(c) => {
+                        if c <= n || c as usize >= self.nodes.len() || reached[c as usize] {
+                            return bad(format!("node {n} slot {i}: child {c} out of order or reached twice"));
+                        }
+                        reached[c as usize] = true;
+                        if !b.contains_box(&self.nodes[c as usize].bounds()) {
+                            return bad(format!("node {n} slot {i}: box does not hold child {c}"));
+                        }
+                        stack.push((c, depth + 1));
+                    }
+                    BvhSlot::Leaf { offset, count } => {
+                        let (off, cnt) = (offset as usize, count as usize);
+                        if cnt == 0 || cnt > BVH_MAX_LEAF || !off.is_multiple_of(LANES) || off + cnt > self.prim_ids.len()
+                        {
+                            return bad(format!("node {n} slot {i}: leaf ({off}, {cnt}) malformed"));
+                        }
+                        for (k, &p) in self.prim_ids[off..off + cnt].iter().enumerate() {
+                            let Some(t) = self.tris.get(p as usize) else {
+                                return bad(format!("leaf names triangle {p} of {}", self.tris.len()));
+                            };
+                            if !is_valid_triangle(t) {
+                                return bad(format!("leaf names the invalid triangle {p}"));
+                            }
+                            let tb = Aabb::from_points(t);
+                            if !b.contains_box(&tb) {
+                                return bad(format!("node {n} slot {i}: box does not hold triangle {p}"));
+                            }
+                            let stored = self.blocks[(off + k) / LANES].triangle((off + k) % LANES);
+                            if stored.map(|v| v.to_array().map(f32::to_bits)) != t.map(|v| v.to_array().map(f32::to_bits)) {
+                                return bad(format!("triangle {p}'s block copy differs"));
+                            }
+                            seen[p as usize] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(n) = reached.iter().position(|r| !r) {
+            return bad(format!("node {n} is not reached from the root"));
+        }
+        if deepest != self.stats.depth && !self.stats.refitted {
+            return bad(format!("depth {deepest} but the figures say {}", self.stats.depth));
+        }
+        for (p, t) in self.tris.iter().enumerate() {
+            let want = u8::from(is_valid_triangle(t));
+            if seen[p] != want {
+                return bad(format!("triangle {p} is in {} leaves, not {want}", seen[p]));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Lays the leaves out on block boundaries (each leaf's range padded with
+/// its last index) and packs their blocks; the leaves' slots get their new
+/// offsets. Returns the index array, the blocks and the number of leaves.
+fn pack(nodes: &mut [BvhNode], ids: &[u32], tris: &[Triangle]) -> (Vec<u32>, Vec<TriBlock>, usize) {
+    let mut new_ids = Vec::with_capacity(ids.len() + ids.len() / 2);
+    let mut blocks = Vec::with_capacity(ids.len() / 2);
+    let mut leaves = 0;
+    for node in nodes.iter_mut() {
+        for i in 0..BVH_WIDTH {
+            let c = node.child[i];
+            if c == EMPTY_SLOT || c & LEAF_BIT == 0 {
+                continue;
+            }
+            leaves += 1;
+            let (off, cnt) = ((c & !LEAF_BIT) as usize, node.count[i] as usize);
+            node.child[i] = LEAF_BIT | new_ids.len() as u32;
+            for chunk in ids[off..off + cnt].chunks(LANES) {
+                blocks.push(TriBlock::pack(chunk, tris));
+                new_ids.extend_from_slice(chunk);
+                let last = chunk[chunk.len() - 1];
+                new_ids.resize(new_ids.len() + LANES - chunk.len(), last);
+            }
+        }
+    }
+    (new_ids, blocks, leaves)
+}
+
+#[cfg(test)]
+mod tests;

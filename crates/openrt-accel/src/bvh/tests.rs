@@ -1,0 +1,255 @@
+//! The BVH against its scalar twin, the kd-tree and the f64 oracle.
+
+use glam::Vec3;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+use super::walk::{NodeRay, node_test_scalar};
+use super::*;
+use crate::oracle::BruteForce;
+use crate::{KdTree, meshgen};
+
+/// Every answer of `bvh` equals the kd-tree's over the same triangles, bit
+/// for bit, and passes the oracle.
+fn same_as_kd_and_oracle(tris: &[Triangle], rays: &[Ray], seed: u64) -> usize {
+    let bvh = Bvh::build(tris.to_vec()).expect("build");
+    bvh.validate().expect("valid");
+    let kd = KdTree::build_sah(tris.to_vec()).expect("kd build");
+    let oracle = BruteForce::new(tris);
+    let mut rng = SmallRng::seed_from_u64(seed);
+    let mut hits = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        let got = bvh.intersect(ray);
+        hits += usize::from(got.is_some());
+        let want = kd.intersect(ray);
+        assert_eq!(got, want, "ray {i} {ray:?}: BVH and kd-tree differ ({:?} / {:?})", got.map(|h| tris[h.prim as usize]), want.map(|h| tris[h.prim as usize]));
+        oracle.check_closest(ray, got).unwrap_or_else(|e| panic!("ray {i}: {e}"));
+        let cut = Ray::new(ray.origin, ray.dir, 0.0, rng.random_range(0.0..6.0));
+        let blocked = bvh.occluded(&cut);
+        assert_eq!(blocked, kd.occluded(&cut), "shadow ray {i}");
+        oracle.check_occluded(&cut, blocked).unwrap_or_else(|e| panic!("shadow ray {i}: {e}"));
+        // A bound from elsewhere (another instance's hit) is respected.
+        let bound = got.map_or(ray.t_max, |h| h.t * 1.5);
+        let (mut a, mut b) = (bound, bound);
+        assert_eq!(bvh.intersect_within(ray, &mut a), kd.intersect_within(ray, &mut b), "ray {i}: bounded");
+        assert_eq!(a.to_bits(), b.to_bits());
+    }
+    hits
+}
+
+#[test]
+fn closed_meshes_soups_and_grids_match_the_kd_tree_and_the_oracle() {
+    for seed in 0..3 {
+        let tris = meshgen::bumpy_sphere(3000, seed, 0.3);
+        let b = Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3));
+        let mut rays = meshgen::random_rays(1500, seed + 7, b);
+        rays.extend(meshgen::camera_rays(Vec3::new(0.3, 0.4, -4.0), Vec3::ZERO, 40, 30, 40.0));
+        rays.extend(meshgen::hard_rays(&tris, 500, seed));
+        assert!(same_as_kd_and_oracle(&tris, &rays, seed) > 1000);
+        let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let soup = meshgen::random_soup(1500, seed, b, 0.2);
+        let rays = meshgen::random_rays(1500, seed + 100, b);
+        assert!(same_as_kd_and_oracle(&soup, &rays, seed) > 200);
+    }
+    let grid = meshgen::grid(24, 24);
+    let mut rays = meshgen::camera_rays(Vec3::new(12.0, 9.0, -20.0), Vec3::new(12.0, 12.0, 0.0), 48, 48, 60.0);
+    rays.extend(meshgen::hard_rays(&grid, 500, 9));
+    assert!(same_as_kd_and_oracle(&grid, &rays, 4) > 1000);
+}
+
+#[test]
+fn axis_parallel_rays_along_faces_match_the_kd_tree() {
+    // Rays with zero direction components running in the planes of
+    // axis-aligned faces: the node test's parallel path decides them.
+    let mut tris = meshgen::cube(Vec3::ZERO, Vec3::ONE);
+    tris.extend(meshgen::cube(Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 1.0, 1.0)));
+    tris.extend(meshgen::grid(4, 4));
+    let mut rays = Vec::new();
+    for &x in &[-0.0f32, 0.0, 0.5, 1.0, 2.0] {
+        for &y in &[0.0f32, 0.25, 1.0] {
+            for d in [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z] {
+                rays.push(Ray::infinite(Vec3::new(x, y, -3.0) - d * 3.0, d));
+                rays.push(Ray::infinite(Vec3::new(-1.0, x, y) - d * 3.0, d));
+                rays.push(Ray::infinite(Vec3::new(x, 0.5, y) - d * 3.0, d));
+            }
+        }
+    }
+    assert!(same_as_kd_and_oracle(&tris, &rays, 1) > 50);
+}
+
+#[test]
+fn the_node_test_equals_its_scalar_twin_bit_for_bit() {
+    let mut rng = SmallRng::seed_from_u64(11);
+    let (mut hits, mut clipped) = (0, 0);
+    for k in 0..20_000 {
+        let mut node = BvhNode::empty();
+        let used = rng.random_range(1..=BVH_WIDTH);
+        for i in 0..used {
+            let a = Vec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+            let mut e = Vec3::new(rng.random_range(0.0..2.0), rng.random_range(0.0..2.0), rng.random_range(0.0..2.0));
+            if k % 5 == 0 {
+                e.x = 0.0; // flat boxes, as axis-aligned triangles make
+            }
+            node.set_box(i, &Aabb::new(a, a + e));
+            node.child[i] = 0;
+        }
+        let o = Vec3::new(rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0));
+        let aim = Vec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+        let mut d = aim - o;
+        if k % 7 == 0 {
+            d.y = if k % 2 == 0 { 0.0 } else { -0.0 };
+        }
+        let ray = Ray::new(o, d, rng.random_range(-1.0..1.0), f32::INFINITY);
+        if !ray.is_valid() {
+            continue;
+        }
+        let closest = rng.random_range(0.0..8.0);
+        let (mask, near) = NodeRay::new(&ray).test(&node, closest);
+        let (want, want_near) = node_test_scalar(&ray, &node, closest);
+        assert_eq!(mask, want, "case {k}");
+        for i in 0..BVH_WIDTH {
+            if mask & (1 << i) != 0 {
+                assert_eq!(near.to_array()[i].to_bits(), want_near[i].to_bits(), "case {k} lane {i}");
+            }
+        }
+        assert_eq!(mask >> used, 0, "an unused slot was hit");
+        for i in 0..used {
+            // Never less than the robust clip of one box (`Aabb::clip`).
+            if node.child_box(i).clip(&ray.with_interval(ray.t_min, closest)).is_some() {
+                assert!(mask & (1 << i) != 0, "case {k} slot {i}: a box the clip meets is skipped");
+                clipped += 1;
+            }
+        }
+        hits += mask.count_ones();
+    }
+    assert!(hits > 1_500 && clipped > 1_500, "{hits} box hits ({clipped} clipped): the sweep tests too little");
+}
+
+#[test]
+fn refits_follow_moving_triangles_and_rebuild_when_the_tree_degrades() {
+    let tris = meshgen::bumpy_sphere(4000, 3, 0.2);
+    let first = Bvh::build(tris.clone()).unwrap();
+    // A gentle deformation: refitted, and the same answers as a fresh build.
+    let moved: Vec<Triangle> = tris.iter().map(|t| t.map(|v| v * (1.0 + 0.1 * v.y.sin()))).collect();
+    let refit = Bvh::refit(&first, moved.clone(), BVH_REFIT_COST_LIMIT).unwrap();
+    assert!(refit.stats().refitted);
+    refit.validate().unwrap();
+    let fresh = Bvh::build(moved.clone()).unwrap();
+    let rays = meshgen::random_rays(3000, 5, Aabb::new(Vec3::splat(-1.5), Vec3::splat(1.5)));
+    let oracle = BruteForce::new(&moved);
+    for ray in &rays {
+        assert_eq!(refit.intersect(ray), fresh.intersect(ray));
+        assert_eq!(refit.occluded(ray), fresh.occluded(ray));
+        oracle.check_closest(ray, refit.intersect(ray)).unwrap();
+    }
+    // Triangles scattered far from their neighbours: the refitted boxes
+    // overlap everywhere, its cost passes the limit and it is rebuilt.
+    let mut rng = SmallRng::seed_from_u64(8);
+    let scattered: Vec<Triangle> = tris
+        .iter()
+        .map(|t| {
+            let s = Vec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0));
+            t.map(|v| v + s)
+        })
+        .collect();
+    let again = Bvh::refit(&refit, scattered.clone(), BVH_REFIT_COST_LIMIT).unwrap();
+    assert!(!again.stats().refitted, "a degraded refit must be rebuilt");
+    again.validate().unwrap();
+    // With no limit the degraded refit is kept, and still correct.
+    let kept = Bvh::refit(&refit, scattered.clone(), f64::INFINITY).unwrap();
+    assert!(kept.stats().refitted && kept.stats().sah_cost > again.stats().sah_cost * BVH_REFIT_COST_LIMIT);
+    kept.validate().unwrap();
+    let oracle = BruteForce::new(&scattered);
+    for ray in rays.iter().take(500) {
+        oracle.check_closest(ray, kept.intersect(ray)).unwrap();
+    }
+    // A triangle that turns degenerate changes the leaves: rebuilt.
+    let mut flat = moved;
+    flat[7] = [flat[7][0]; 3];
+    let rebuilt = Bvh::refit(&first, flat, BVH_REFIT_COST_LIMIT).unwrap();
+    assert!(!rebuilt.stats().refitted && rebuilt.stats().dropped == 1);
+    rebuilt.validate().unwrap();
+}
+
+#[test]
+fn hostile_inputs_build_valid_shallow_trees() {
+    // Identical triangles (every centre the same point), a geometric
+    // progression of sizes (binning separates one at a time), degenerate
+    // and non-finite triangles, and nothing at all.
+    let same = vec![[Vec3::ZERO, Vec3::X, Vec3::Y]; 5000];
+    let progression: Vec<Triangle> = (0..3000)
+        .map(|i| {
+            let s = 1.5f32.powi(-(i % 60)) + i as f32 * 1e-3;
+            [Vec3::splat(s), Vec3::splat(s) + Vec3::X * s, Vec3::splat(s) + Vec3::Y * s]
+        })
+        .collect();
+    let mut junk = meshgen::bumpy_sphere(500, 1, 0.1);
+    junk.push([Vec3::ONE; 3]);
+    junk.push([Vec3::NAN, Vec3::X, Vec3::Y]);
+    junk.push([Vec3::INFINITY, Vec3::X, Vec3::Y]);
+    for (name, tris) in [("same", same), ("progression", progression), ("junk", junk), ("empty", Vec::new())] {
+        let bvh = Bvh::build(tris.clone()).unwrap();
+        bvh.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(bvh.stats().depth <= BVH_MAX_DEPTH, "{name}");
+        let rays = meshgen::random_rays(300, 2, Aabb::new(Vec3::splat(-1.0), Vec3::splat(2.0)));
+        let oracle = BruteForce::new(&tris);
+        for ray in &rays {
+            oracle.check_closest(ray, bvh.intersect(ray)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+    let junk_stats = Bvh::build(meshgen::bumpy_sphere(10, 1, 0.1)).unwrap();
+    assert_eq!(junk_stats.stats().dropped, 0);
+}
+
+#[test]
+fn the_primitive_limit_is_checked() {
+    assert!(check_count(BVH_MAX_PRIMITIVES).is_ok());
+    assert_eq!(
+        check_count(BVH_MAX_PRIMITIVES + 1),
+        Err(AccelError::TooManyPrimitives {
+            count: BVH_MAX_PRIMITIVES + 1,
+            limit: BVH_MAX_PRIMITIVES
+        })
+    );
+}
+
+#[test]
+fn validate_catches_broken_trees() {
+    let bvh = Bvh::build(meshgen::bumpy_sphere(2000, 4, 0.1)).unwrap();
+    bvh.validate().unwrap();
+    let mut shrunk = bvh.clone();
+    let b = shrunk.nodes[0].child_box(0);
+    shrunk.nodes[0].set_box(0, &Aabb::new(b.min, b.min + (b.max - b.min) * 0.5));
+    assert!(shrunk.validate().is_err(), "a box that no longer holds its subtree");
+    let mut lost = bvh.clone();
+    let leaf = lost.prim_ids.iter().position(|&p| p == 17).unwrap();
+    lost.prim_ids[leaf] = 18;
+    assert!(lost.validate().is_err(), "a triangle in no leaf");
+    let mut moved = bvh;
+    let last = moved.tris.len() - 1;
+    moved.tris[last][0].x += 1e-3;
+    assert!(moved.validate().is_err(), "a block that differs from its triangle");
+}
+
+#[test]
+fn packet_forms_answer_lane_by_lane() {
+    let tris = meshgen::bumpy_sphere(2000, 6, 0.2);
+    let bvh = Bvh::build(tris).unwrap();
+    let rays = meshgen::camera_rays(Vec3::new(0.2, 0.1, -4.0), Vec3::ZERO, 16, 16, 50.0);
+    for chunk in rays.chunks_exact(8) {
+        let rays: [Ray; 8] = std::array::from_fn(|l| chunk[l]);
+        let mut closest = rays.map(|r| r.t_max);
+        let mut hits = [None; 8];
+        let found = bvh.intersect_packet_in(&rays, 0b1011_0111, &mut closest, &mut hits, None, None);
+        let (blocked, leaf) = bvh.occluder_packet_in(&rays, 0b1011_0111, None, None);
+        for l in 0..8 {
+            let want = if 0b1011_0111 & (1 << l) != 0 { bvh.intersect(&rays[l]) } else { None };
+            assert_eq!(hits[l], want);
+            assert_eq!(found & (1 << l) != 0, want.is_some());
+            assert_eq!(blocked & (1 << l) != 0, want.is_some());
+        }
+        if let Some(leaf) = leaf {
+            assert_ne!(bvh.leaf_blocks_packet(&rays, blocked, leaf, 1e-6, None) | 1, 0);
+        }
+    }
+}
