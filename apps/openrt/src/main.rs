@@ -80,7 +80,7 @@ const MAX_BENCH_FRAMES: usize = 1000;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use openrt_accel::BuilderKind;
-use openrt_core::{Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter};
+use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter};
 use openrt_scene::ScenePlayer;
 
 #[derive(Parser)]
@@ -141,6 +141,9 @@ struct Quality {
     /// `--features embree` add `embree` and `embree-packet`.
     #[arg(long, default_value = "kd")]
     backend: Backend,
+    /// Object structure: `kd` (the paper's kd-trees) or `bvh` (4-wide BVHs); the same images.
+    #[arg(long, default_value = "kd")]
+    accel: Accel,
 }
 
 #[derive(Subcommand)]
@@ -316,6 +319,8 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
 
 /// Gives the scene's commit pool the render thread count (`--threads`).
 fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
+    // The scene's objects are rebuilt with this structure at the next commit.
+    player.ctx_mut().set_accel(q.accel);
     player
         .ctx_mut()
         .set_threads(threads(q))

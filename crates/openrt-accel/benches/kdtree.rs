@@ -11,7 +11,7 @@ use std::time::Instant;
 use criterion::{BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
 use openrt_accel::oracle::BruteForce;
-use openrt_accel::{Aabb, Hit, KdTree, Ray, Triangle, meshgen};
+use openrt_accel::{Aabb, Bvh, Hit, KdTree, Ray, Triangle, meshgen};
 
 fn sizes() -> Vec<usize> {
     std::env::var("OPENRT_BENCH_SIZES").ok().map_or_else(
@@ -133,8 +133,8 @@ fn summary() {
     println!("\nsummary (median of 7, this run; ratio: median of 7 paired, interleaved passes;");
     println!("robust: against Embree with its ROBUST scene flag, watertight as the kd-tree is)");
     println!(
-        "{:>9} {:>12} {:>8} {:>10} {:>10} {:>10} {:>7} {:>7}",
-        "tris", "build Mt/s", "rays", "query", "kd Mr/s", "embree", "ratio", "robust"
+        "{:>9} {:>12} {:>8} {:>10} {:>10} {:>10} {:>7} {:>7} {:>10} {:>7} {:>7}",
+        "tris", "build Mt/s", "rays", "query", "kd Mr/s", "embree", "ratio", "robust", "bvh Mr/s", "bvh/kd", "bvh/emb"
     );
     for n in sizes() {
         let tris = mesh(n);
@@ -143,6 +143,14 @@ fn summary() {
         let s = median_secs(reps, || tree = Some(KdTree::build_sah(tris.clone()).unwrap()));
         let tree = tree.unwrap();
         let build = tris.len() as f64 / s / 1e6;
+        let mut bvh = None;
+        let bs = median_secs(reps, || bvh = Some(Bvh::build(tris.clone()).unwrap()));
+        let bvh = bvh.unwrap();
+        println!(
+            "{:>9} BVH build {:.2} Mt/s (one thread)",
+            tris.len(),
+            tris.len() as f64 / bs / 1e6
+        );
         #[cfg(feature = "embree")]
         let emb = openrt_accel::EmbreeMesh::new(&tris, true).unwrap();
         #[cfg(feature = "embree")]
@@ -156,13 +164,17 @@ fn summary() {
                 // the same machine load (this machine is shared and noisy).
                 let (mut kd, mut peer, mut ratios, mut robust_ratios) =
                     (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+                let (mut wide, mut wide_kd, mut wide_peer) = (Vec::new(), Vec::new(), Vec::new());
                 // NOTE: round 0 is a warm-up, not recorded: the first pass
                 // after a build ran up to 20% slower (cold caches, and
                 // Embree's build threads still winding down beside it).
                 for round in 0..8 {
                     let k = query_secs(rays, closest, |r| tree.intersect(r).is_some(), |r| tree.occluded(r));
+                    let b = query_secs(rays, closest, |r| bvh.intersect(r).is_some(), |r| bvh.occluded(r));
                     if round > 0 {
                         kd.push(k);
+                        wide.push(b);
+                        wide_kd.push(k / b);
                     }
                     #[cfg(feature = "embree")]
                     {
@@ -171,6 +183,7 @@ fn summary() {
                         if round > 0 {
                             peer.push(e);
                             ratios.push(e / k);
+                            wide_peer.push(e / b);
                             robust_ratios.push(er / k);
                         }
                     }
@@ -186,14 +199,22 @@ fn summary() {
                         format!("{:.2}", median(&mut robust_ratios)),
                     )
                 };
+                let bvh_mrays = rays.len() as f64 / median(&mut wide) / 1e6;
+                let bvh_kd = median(&mut wide_kd);
+                let bvh_emb = if wide_peer.is_empty() {
+                    "-".to_string()
+                } else {
+                    format!("{:.2}", median(&mut wide_peer))
+                };
                 println!(
-                    "{:>9} {build:>12.2} {kind:>8} {query:>10} {kd_mrays:>10.2} {emb_s:>10} {ratio:>7} {robust_ratio:>7}",
+                    "{:>9} {build:>12.2} {kind:>8} {query:>10} {kd_mrays:>10.2} {emb_s:>10} {ratio:>7} {robust_ratio:>7} {bvh_mrays:>10.2} {bvh_kd:>7.2} {bvh_emb:>7}",
                     tris.len()
                 );
             }
         }
         let random = &sets[1].1;
         let (kd_r, kd_h) = oracle_errors(&tris, random, |r| tree.intersect(r));
+        let (bvh_r, bvh_h) = oracle_errors(&tris, random, |r| bvh.intersect(r));
         #[cfg(feature = "embree")]
         let peers = [("Embree", &emb), ("Embree robust", &robust)]
             .map(|(name, peer)| {
@@ -204,7 +225,7 @@ fn summary() {
         #[cfg(not(feature = "embree"))]
         let peers = String::new();
         println!(
-            "          closest hits off the f64 oracle (random + hard rays sampled): kd-tree {kd_r} + {kd_h}{peers}"
+            "          closest hits off the f64 oracle (random + hard rays sampled): kd-tree {kd_r} + {kd_h}, BVH {bvh_r} + {bvh_h}{peers}"
         );
         let st = tree.stats();
         println!(

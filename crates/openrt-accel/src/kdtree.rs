@@ -295,8 +295,7 @@ impl KdTree {
         let br = BlockRay::new(ray);
         traverse(&self.nodes, ray, t0, t1, closest, |leaf, closest| {
             let tie = best.map_or(NO_TIE, |h| h.prim);
-            if let Some((prim, (t, b1, b2))) =
-                leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest, tie)
+            if let Some((prim, (t, b1, b2))) = leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest, tie)
             {
                 *closest = t;
                 best = Some(Hit { t, prim, b1, b2 });
@@ -445,9 +444,15 @@ impl KdTree {
             }
             let brs = brs.get_or_insert_with(|| block_rays(rays));
             for l in lanes_of(active) {
-                if let Some((prim, (t, b1, b2))) =
-                    leaf_closest(&rays[l], &brs[l], leaf, &self.prim_ids, &self.blocks, closest[l], ties[l])
-                {
+                if let Some((prim, (t, b1, b2))) = leaf_closest(
+                    &rays[l],
+                    &brs[l],
+                    leaf,
+                    &self.prim_ids,
+                    &self.blocks,
+                    closest[l],
+                    ties[l],
+                ) {
                     ties[l] = prim;
                     closest[l] = t;
                     hits[l] = Some(Hit { t, prim, b1, b2 });
@@ -507,8 +512,17 @@ impl KdTree {
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
                     let f = packet_frustum(frustum, &own, rays, live);
-                    let hit =
-                        self.leaf_packet(pbr, rays, f, active, leaf, closest, None, Some(&mut tested), |h, _, _| h.hit);
+                    let hit = self.leaf_packet(
+                        pbr,
+                        rays,
+                        f,
+                        active,
+                        leaf,
+                        closest,
+                        None,
+                        Some(&mut tested),
+                        |h, _, _| h.hit,
+                    );
                     if hit != 0 {
                         found = found.or(Some(leaf));
                     }

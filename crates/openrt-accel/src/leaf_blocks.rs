@@ -428,15 +428,27 @@ impl LeafLists<'_> {
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
         let mut got = 0u32;
         // One leaf names no triangle twice: no mailbox.
-        leaf_packet(&pbr, rays, frustum, lanes, leaf, self.ids, self.blocks, &mut closest, None, None, |h, _, _| {
-            for l in crate::packet::lanes_of(h.hit) {
-                if well_inside(&rays[l], h.lane(l), margin) {
-                    got |= 1 << l;
+        leaf_packet(
+            &pbr,
+            rays,
+            frustum,
+            lanes,
+            leaf,
+            self.ids,
+            self.blocks,
+            &mut closest,
+            None,
+            None,
+            |h, _, _| {
+                for l in crate::packet::lanes_of(h.hit) {
+                    if well_inside(&rays[l], h.lane(l), margin) {
+                        got |= 1 << l;
+                    }
                 }
-            }
-            // Settled lanes leave; the others try the leaf's other triangles.
-            got & h.hit
-        });
+                // Settled lanes leave; the others try the leaf's other triangles.
+                got & h.hit
+            },
+        );
         got
     }
 }

@@ -201,6 +201,8 @@ pub struct ChangeSet {
     /// The master refits fast trees ([`Context::set_refit`]): the replica
     /// must too, to build the same trees.
     pub refit: bool,
+    /// The master's object structure ([`Context::set_accel`]).
+    pub accel: crate::Accel,
 }
 
 impl ChangeSet {
@@ -313,6 +315,7 @@ impl Context {
             frame,
             full: std::mem::take(&mut log.first),
             refit: self.refit,
+            accel: self.accel,
             ..ChangeSet::default()
         };
         if self.materials_dirty {
@@ -422,6 +425,7 @@ impl Context {
         self.ensure_not_defining("apply_changes")?;
         self.promote_after = None;
         self.refit = set.refit;
+        self.accel = set.accel;
         if let Some(ms) = &set.materials {
             let mut table = Vec::with_capacity(ms.len());
             for m in ms {
@@ -502,11 +506,15 @@ impl Context {
                         .geometry
                         .as_ref()
                         .ok_or_else(|| bad(format!("object slot {index} promoted before it was defined")))?;
-                    let tree = openrt_accel::KdTree::build_sah(geom.tree.triangles().to_vec()).map_err(|source| {
-                        CoreError::Accel {
-                            call: "apply_changes",
-                            source,
-                        }
+                    let tree = crate::object::ObjectTree::build(
+                        crate::Accel::Kd,
+                        geom.tree.triangles().to_vec(),
+                        openrt_accel::BuilderKind::Sah,
+                        None,
+                    )
+                    .map_err(|source| CoreError::Accel {
+                        call: "apply_changes",
+                        source,
                     })?;
                     s.promotion = Some(Promotion::Ready {
                         version: s.version,
@@ -598,7 +606,15 @@ mod tests {
         for (x, y) in a.instances().iter().zip(b.instances()) {
             assert_eq!((x.id, x.object, x.to_world), (y.id, y.object, y.to_world));
             assert_eq!(x.geometry.builder(), y.geometry.builder());
-            assert_eq!(x.geometry.tree.nodes(), y.geometry.tree.nodes(), "the same tree");
+            match (&x.geometry.tree, &y.geometry.tree) {
+                (crate::ObjectTree::Kd(p), crate::ObjectTree::Kd(q)) => {
+                    assert_eq!(p.nodes(), q.nodes(), "the same tree");
+                }
+                (crate::ObjectTree::Bvh(p, _), crate::ObjectTree::Bvh(q, _)) => {
+                    assert_eq!(p.stats().sah_cost, q.stats().sah_cost, "the same tree");
+                }
+                _ => panic!("different structures"),
+            }
         }
         for r in meshgen::random_rays(300, 9, openrt_accel::Aabb::new(Vec3::splat(-4.0), Vec3::splat(4.0))) {
             assert_eq!(a.intersect(&r), b.intersect(&r));

@@ -4,7 +4,9 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use openrt_accel::{BuilderKind, KdTree};
+use openrt_accel::BuilderKind;
+
+use crate::object::ObjectTree;
 use rayon::prelude::*;
 
 use crate::context::{InstanceSlot, Promotion};
@@ -79,27 +81,23 @@ impl CommitStats {
     }
 }
 
-/// Builds an object tree; `fail` (tests only) counts down to an injected failure.
-/// `refit_from`: the object's last tree, to refit when it came from the
-/// fast builder and `builder` is the fast builder.
+/// Builds an object tree of `accel`; `fail` (tests only) counts down to an
+/// injected failure. `refit_from`: the object's last tree, to refit when it
+/// came from the fast builder and `builder` is the fast builder.
 fn build_tree(
+    accel: crate::Accel,
     tris: Vec<openrt_accel::Triangle>,
     builder: BuilderKind,
-    refit_from: Option<&KdTree>,
+    refit_from: Option<&ObjectTree>,
     fail: Option<&mut usize>,
-) -> Result<KdTree, openrt_accel::AccelError> {
+) -> Result<ObjectTree, openrt_accel::AccelError> {
     if let Some(n) = fail {
         if *n == 0 {
             return Err(openrt_accel::AccelError::Invalid("injected build failure".into()));
         }
         *n -= 1;
     }
-    match refit_from {
-        Some(prev) if builder == BuilderKind::Fast && prev.stats().builder == BuilderKind::Fast => {
-            KdTree::refit_fast(prev, tris, &openrt_accel::FastParams::default())
-        }
-        _ => KdTree::build(tris, builder),
-    }
+    ObjectTree::build(accel, tris, builder, refit_from)
 }
 
 /// Background SAH builds running at once, at most: they share the pool
@@ -183,6 +181,7 @@ impl Context {
         let mut stats = CommitStats::default();
         let promote_after = self.promote_after;
         let redefinition_builder = self.redefinition_builder;
+        let accel = self.accel;
 
         // Phase 1 builds everything into `staged` and changes nothing, so
         // that an error leaves the context and the scene as they were.
@@ -214,7 +213,7 @@ impl Context {
                 // smaller one runs here (the same tree, without waking the pool).
                 let tree = self
                     .bsp_builder
-                    .install_build(builder, n, || build_tree(tris, builder, prev, fail))
+                    .install_build(builder, n, || build_tree(accel, tris, builder, prev, fail))
                     .map_err(|source| CoreError::Accel { call: "commit", source })?;
                 stats.builds.push(BuildRecord {
                     object: id,
@@ -222,7 +221,7 @@ impl Context {
                     triangles: mesh.triangles.len(),
                     dropped: mesh.dropped,
                     ms: t0.elapsed().as_secs_f64() * 1e3,
-                    refitted: tree.stats().refitted,
+                    refitted: tree.refitted(),
                 });
                 staged[index] = Some(Arc::new(ObjectGeometry {
                     tree,
@@ -420,7 +419,8 @@ impl Context {
                 continue;
             }
             let Some(geom) = &slot.geometry else { continue };
-            if geom.builder() != BuilderKind::Fast {
+            // NOTE: a BVH has one builder: a promotion would build the same tree.
+            if geom.builder() != BuilderKind::Fast || geom.tree.accel() != crate::Accel::Kd {
                 continue;
             }
             slot.unchanged_commits = slot.unchanged_commits.saturating_add(1);
@@ -449,7 +449,7 @@ impl Context {
                             let tree = if fail {
                                 Err(openrt_accel::AccelError::Invalid("injected promotion failure".into()))
                             } else {
-                                KdTree::build_sah(tris)
+                                ObjectTree::build(crate::Accel::Kd, tris, BuilderKind::Sah, None)
                             };
                             let _ = tx.send(
                                 tree.map(|tree| Arc::new(ObjectGeometry { tree, shading }))

@@ -139,6 +139,8 @@ pub struct Context {
     /// Redefined objects whose tree came from the fast builder are refitted
     /// ([`Context::set_refit`]).
     pub(crate) refit: bool,
+    /// The structure new and redefined objects get ([`Context::set_accel`]).
+    pub(crate) accel: crate::Accel,
     /// The pool of the commit, the background builds and the renderers
     /// given it ([`Context::pool`]); `None` only when no thread could be
     /// started (the commit then runs on the calling thread).
@@ -186,6 +188,7 @@ impl Context {
             promote_after: Some(3),
             redefinition_builder: openrt_accel::BuilderKind::Fast,
             refit: true,
+            accel: crate::Accel::default(),
             pool,
             bsp_builder,
             fail_builds: None,
@@ -217,6 +220,37 @@ impl Context {
     /// committed before, not on the thread count.
     pub fn set_refit(&mut self, refit: bool) {
         self.refit = refit;
+    }
+
+    /// The structure built over objects: kd-trees (the default) or BVHs.
+    /// Objects already built are rebuilt with the new structure at the
+    /// next commit (each with the builder it had); the images are the same
+    /// bytes either way.
+    pub fn set_accel(&mut self, accel: crate::Accel) {
+        if accel == self.accel {
+            return;
+        }
+        self.accel = accel;
+        for slot in &mut self.objects {
+            if !slot.alive || slot.pending.is_some() {
+                continue;
+            }
+            if let Some(g) = &slot.geometry {
+                let triangles = g.tree.triangles().to_vec();
+                slot.forced_builder = Some(g.builder());
+                slot.pending = Some(crate::ObjectMesh {
+                    triangles,
+                    shading: (*g.shading).clone(),
+                    dropped: 0,
+                });
+            }
+        }
+    }
+
+    /// The structure new and redefined objects get.
+    #[must_use]
+    pub fn accel(&self) -> crate::Accel {
+        self.accel
     }
 
     /// Gives the context a new pool of `threads` threads

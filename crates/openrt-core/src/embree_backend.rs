@@ -59,7 +59,7 @@ impl EmbreeScene {
             _ => {
                 let objects: Vec<(&[Triangle], bool)> = geoms
                     .iter()
-                    .map(|g| (g.tree.triangles(), g.tree.stats().builder == BuilderKind::Fast))
+                    .map(|g| (g.tree.triangles(), g.tree.builder() == BuilderKind::Fast))
                     .collect();
                 let instances: Vec<(usize, [f32; 16])> = inst_obj.iter().copied().zip(transforms).collect();
                 self.two_level = Some(EmbreeTwoLevel::new(&objects, &instances).map_err(err)?);

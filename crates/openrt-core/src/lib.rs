@@ -111,7 +111,7 @@ pub use limits::{
 };
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
-pub use object::{ObjectGeometry, ObjectMesh, ShadingData};
+pub use object::{Accel, ObjectGeometry, ObjectMesh, ObjectTree, ShadingData};
 pub use occluder_hint::{HINT_MARGIN, HINT_MAX_REST, OccluderHint};
 pub use pool::ThreadPool;
 pub use primitive::PrimitiveKind;

@@ -3,7 +3,10 @@
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
-use openrt_accel::{BuilderKind, KdTree, Triangle};
+use openrt_accel::{
+    Aabb, AccelError, BVH_REFIT_COST_LIMIT, BuilderKind, Bvh, FastParams, Frustum, Hit, KdNode, KdTree, PacketBoxes,
+    Ray, Triangle,
+};
 
 use crate::MaterialId;
 
@@ -31,11 +34,218 @@ pub struct ObjectMesh {
     pub dropped: usize,
 }
 
-/// What instances share: an object's kd-tree and its shading data.
+/// The structure built over an object's triangles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum Accel {
+    /// The paper's kd-tree (SAH for static and affine objects, the fast
+    /// builder and its refit for unstructured motion).
+    #[default]
+    Kd,
+    /// A 4-wide BVH (binned SAH; refitted for unstructured motion).
+    Bvh,
+}
+
+impl Accel {
+    /// The name used by the CLI, RON scenes and the bench (`kd`, `bvh`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Kd => "kd",
+            Self::Bvh => "bvh",
+        }
+    }
+}
+
+impl std::str::FromStr for Accel {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "kd" => Ok(Self::Kd),
+            "bvh" => Ok(Self::Bvh),
+            _ => Err(format!("unknown acceleration structure {s:?}: expected kd or bvh")),
+        }
+    }
+}
+
+/// An object's tree: a kd-tree or a BVH, with the same queries and the
+/// same answers (bit for bit: both test the same triangles with the same
+/// kernel, and exact ties go to the lower triangle index).
+#[derive(Debug)]
+pub enum ObjectTree {
+    /// A kd-tree.
+    Kd(KdTree),
+    /// A BVH and the builder it stands for (`Fast`: an unstructured
+    /// object's, refitted when redefined).
+    Bvh(Bvh, BuilderKind),
+}
+
+/// Calls the same method on either structure.
+macro_rules! both {
+    ($self:expr, $t:ident => $e:expr) => {
+        match $self {
+            ObjectTree::Kd($t) => $e,
+            ObjectTree::Bvh($t, _) => $e,
+        }
+    };
+}
+
+impl ObjectTree {
+    /// Builds `accel`'s tree with `builder`; `prev`: the object's last tree,
+    /// refitted when both it and this build are the fast builder's (and of
+    /// the same structure).
+    pub fn build(
+        accel: Accel,
+        tris: Vec<Triangle>,
+        builder: BuilderKind,
+        prev: Option<&ObjectTree>,
+    ) -> Result<Self, AccelError> {
+        let fast = builder == BuilderKind::Fast;
+        Ok(match (accel, prev) {
+            (Accel::Kd, Some(Self::Kd(p))) if fast && p.stats().builder == BuilderKind::Fast => {
+                Self::Kd(KdTree::refit_fast(p, tris, &FastParams::default())?)
+            }
+            (Accel::Kd, _) => Self::Kd(KdTree::build(tris, builder)?),
+            (Accel::Bvh, Some(Self::Bvh(p, BuilderKind::Fast))) if fast => {
+                Self::Bvh(Bvh::refit(p, tris, BVH_REFIT_COST_LIMIT)?, builder)
+            }
+            (Accel::Bvh, _) => Self::Bvh(Bvh::build(tris)?, builder),
+        })
+    }
+
+    /// Which structure this is.
+    #[must_use]
+    pub fn accel(&self) -> Accel {
+        match self {
+            Self::Kd(_) => Accel::Kd,
+            Self::Bvh(..) => Accel::Bvh,
+        }
+    }
+
+    /// The builder that made the tree (or that a BVH stands for).
+    #[must_use]
+    pub fn builder(&self) -> BuilderKind {
+        match self {
+            Self::Kd(t) => t.stats().builder,
+            Self::Bvh(_, b) => *b,
+        }
+    }
+
+    /// `true` when the tree was refitted from the object's last tree.
+    #[must_use]
+    pub fn refitted(&self) -> bool {
+        match self {
+            Self::Kd(t) => t.stats().refitted,
+            Self::Bvh(t, _) => t.stats().refitted,
+        }
+    }
+
+    /// Heap bytes of the structure and its triangles.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        match self {
+            Self::Kd(t) => t.stats().bytes,
+            Self::Bvh(t, _) => t.stats().bytes,
+        }
+    }
+
+    /// Every non-empty leaf, as the occluder hints name them.
+    #[must_use]
+    pub fn leaves(&self) -> Vec<KdNode> {
+        match self {
+            Self::Kd(t) => t
+                .nodes()
+                .iter()
+                .filter(|n| n.is_leaf() && n.prim_count() > 0)
+                .copied()
+                .collect(),
+            Self::Bvh(t, _) => t.leaves(),
+        }
+    }
+
+    /// The triangles, indexed by `Hit::prim`.
+    #[must_use]
+    pub fn triangles(&self) -> &[Triangle] {
+        both!(self, t => t.triangles())
+    }
+
+    /// Bounds of the valid triangles.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        both!(self, t => t.bounds())
+    }
+
+    /// See [`KdTree::intersect_within`].
+    #[inline]
+    pub fn intersect_within(&self, ray: &Ray, closest: &mut f32) -> Option<Hit> {
+        both!(self, t => t.intersect_within(ray, closest))
+    }
+
+    /// See [`KdTree::occluded`].
+    #[must_use]
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        both!(self, t => t.occluded(ray))
+    }
+
+    /// See [`KdTree::occluder`].
+    #[must_use]
+    #[inline]
+    pub fn occluder(&self, ray: &Ray) -> Option<KdNode> {
+        both!(self, t => t.occluder(ray))
+    }
+
+    /// See [`KdTree::leaf_blocks`].
+    #[must_use]
+    pub fn leaf_blocks(&self, ray: &Ray, leaf: KdNode, margin: f32) -> bool {
+        both!(self, t => t.leaf_blocks(ray, leaf, margin))
+    }
+
+    /// See [`KdTree::leaf_blocks_packet`].
+    #[must_use]
+    pub fn leaf_blocks_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        leaf: KdNode,
+        margin: f32,
+        frustum: Option<&Frustum>,
+    ) -> u32 {
+        both!(self, t => t.leaf_blocks_packet(rays, lanes, leaf, margin, frustum))
+    }
+
+    /// See [`KdTree::intersect_packet_in`].
+    #[inline]
+    pub fn intersect_packet_in<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        closest: &mut [f32; N],
+        hits: &mut [Option<Hit>; N],
+        frustum: Option<&Frustum>,
+        laid_out: Option<&PacketBoxes<N>>,
+    ) -> u32 {
+        both!(self, t => t.intersect_packet_in(rays, lanes, closest, hits, frustum, laid_out))
+    }
+
+    /// See [`KdTree::occluder_packet_in`].
+    #[must_use]
+    #[inline]
+    pub fn occluder_packet_in<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+        frustum: Option<&Frustum>,
+        laid_out: Option<&PacketBoxes<N>>,
+    ) -> (u32, Option<KdNode>) {
+        both!(self, t => t.occluder_packet_in(rays, lanes, frustum, laid_out))
+    }
+}
+
+/// What instances share: an object's tree and its shading data.
 #[derive(Debug)]
 pub struct ObjectGeometry {
-    /// The object kd-tree (owns the triangles).
-    pub tree: KdTree,
+    /// The object's tree (owns the triangles).
+    pub tree: ObjectTree,
     /// Shading attributes indexed by `Hit::prim`.
     pub shading: Arc<ShadingData>,
 }
@@ -44,6 +254,6 @@ impl ObjectGeometry {
     /// Which builder made the tree.
     #[must_use]
     pub fn builder(&self) -> BuilderKind {
-        self.tree.stats().builder
+        self.tree.builder()
     }
 }

@@ -17,8 +17,8 @@ use std::sync::Arc;
 
 use openrt_accel::{PacketWidth, Ray, lanes_mask};
 use openrt_core::{
-    Backend, Camera, Environment, HINT_MARGIN, OccluderHint, RenderMode, RenderSettings, Renderer, Scene, SceneHit,
-    offset_ray_origin,
+    Accel, Backend, Camera, Environment, HINT_MARGIN, OccluderHint, RenderMode, RenderSettings, Renderer, Scene,
+    SceneHit, offset_ray_origin,
 };
 use openrt_scene::ScenePlayer;
 use rand::rngs::SmallRng;
@@ -144,13 +144,8 @@ fn hinted(name: &str, scene: &Scene, env: &Environment, shadow: &[Ray]) -> usize
         .iter()
         .enumerate()
         .flat_map(|(i, inst)| {
-            let leaves = inst
-                .geometry
-                .tree
-                .nodes()
-                .iter()
-                .filter(|n| n.is_leaf() && n.prim_count() > 0);
-            leaves.map(move |&n| OccluderHint::naming(i as u32, n))
+            let leaves = inst.geometry.tree.leaves();
+            leaves.into_iter().map(move |n| OccluderHint::naming(i as u32, n))
         })
         .collect();
     let stride = every.len().div_ceil(1_500);
@@ -214,6 +209,9 @@ fn packets_answer_as_single_rays_on_the_shipped_scenes() {
         let mut p = ScenePlayer::open(Some(&repo().join(format!("scenes/{name}.ron")))).unwrap();
         let frames: Vec<u32> = [0, p.frames() / 2, p.frames().saturating_sub(1)].into();
         sweep(name, &mut p, &frames, 64, 48);
+        // The same with BVHs under the instances.
+        p.ctx_mut().set_accel(Accel::Bvh);
+        sweep(&format!("{name} (bvh)"), &mut p, &frames, 64, 48);
     }
 }
 
@@ -273,6 +271,26 @@ fn same_bytes(name: &str, player: &mut ScenePlayer, frame: u32) {
             want.iter().any(|&b| b != want[0]),
             "{name}: a blank image proves nothing"
         );
+        // BVHs under the instances: the kd-tree's bytes, single rays and packets.
+        player.ctx_mut().set_accel(Accel::Bvh);
+        player.set_time(t).unwrap();
+        assert!(
+            player
+                .ctx()
+                .scene()
+                .instances()
+                .iter()
+                .all(|i| i.geometry.tree.accel() == Accel::Bvh)
+        );
+        for backend in [Backend::KdSingle, Backend::Kd] {
+            let got = render(player, t, mode, 2, backend, PacketWidth::W8);
+            assert!(
+                got == want,
+                "{name} frame {frame} {mode:?}: BVH with {backend:?} differs from kd"
+            );
+        }
+        player.ctx_mut().set_accel(Accel::Kd);
+        player.set_time(t).unwrap();
     }
 }
 

@@ -46,9 +46,9 @@ impl Ref {
 
 /// Bounds of a range of references.
 pub(crate) fn bounds_of(refs: &[Ref]) -> Aabb {
-    let (lo, hi) = refs
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| (l.min(r.lo), h.max(r.hi)));
+    let (lo, hi) = refs.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| {
+        (l.min(r.lo), h.max(r.hi))
+    });
     Aabb { min: lo, max: hi }
 }
 
@@ -79,9 +79,9 @@ fn split(refs: &mut [Ref], bounds: &Aabb, depth: usize) -> Split {
     if n <= 1 {
         return Split::Leaf;
     }
-    let (clo, chi) = refs
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| (l.min(r.centre()), h.max(r.centre())));
+    let (clo, chi) = refs.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| {
+        (l.min(r.centre()), h.max(r.centre()))
+    });
     let ext = chi - clo;
     if depth < MEDIAN_DEPTH
         && let Some((axis, bin, cost)) = best_bin(refs, clo, ext)
@@ -225,7 +225,10 @@ fn grow(refs: &mut [Ref], bounds: Aabb, depth: usize) -> ([Kid; BVH_WIDTH], usiz
     for kid in &mut kids[..n] {
         let count = kid.end - kid.start;
         if !kid.leaf && count <= BVH_MAX_LEAF {
-            kid.leaf = matches!(split(&mut refs[kid.start..kid.end], &kid.bounds, depth + 1), Split::Leaf);
+            kid.leaf = matches!(
+                split(&mut refs[kid.start..kid.end], &kid.bounds, depth + 1),
+                Split::Leaf
+            );
         }
     }
     kids[..n].sort_by_key(|k| k.start);
@@ -312,7 +315,14 @@ pub(crate) fn build_into(
         } else {
             let child = nodes.len() as u32;
             nodes[me].child[i] = child;
-            let d = build_into(&mut refs[k.start..k.end], base + k.start, k.bounds, depth + 1, parallel, nodes);
+            let d = build_into(
+                &mut refs[k.start..k.end],
+                base + k.start,
+                k.bounds,
+                depth + 1,
+                parallel,
+                nodes,
+            );
             deepest = deepest.max(d);
         }
     }

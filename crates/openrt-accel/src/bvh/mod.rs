@@ -206,6 +206,19 @@ impl Bvh {
         }
     }
 
+    /// Every leaf, named as [`Bvh::occluder`] names them (for hints).
+    #[must_use]
+    pub fn leaves(&self) -> Vec<KdNode> {
+        self.nodes
+            .iter()
+            .flat_map(|n| (0..BVH_WIDTH).map(|i| n.slot(i)))
+            .filter_map(|s| match s {
+                BvhSlot::Leaf { offset, count } => Some(KdNode::leaf(offset, count)),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// SAH cost: expected node visits plus triangle blocks tested per ray
     /// entering the root box.
     #[must_use]
@@ -246,8 +259,7 @@ impl Bvh {
         walk::walk(&self.nodes, ray, closest, |off, count, closest| {
             let leaf = KdNode::leaf(off, count);
             let tie = best.map_or(NO_TIE, |h| h.prim);
-            if let Some((prim, (t, b1, b2))) =
-                leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest, tie)
+            if let Some((prim, (t, b1, b2))) = leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest, tie)
             {
                 *closest = t;
                 best = Some(Hit { t, prim, b1, b2 });
@@ -400,7 +412,10 @@ impl Bvh {
                     }
                     BvhSlot::Leaf { offset, count } => {
                         let (off, cnt) = (offset as usize, count as usize);
-                        if cnt == 0 || cnt > BVH_MAX_LEAF || !off.is_multiple_of(LANES) || off + cnt > self.prim_ids.len()
+                        if cnt == 0
+                            || cnt > BVH_MAX_LEAF
+                            || !off.is_multiple_of(LANES)
+                            || off + cnt > self.prim_ids.len()
                         {
                             return bad(format!("node {n} slot {i}: leaf ({off}, {cnt}) malformed"));
                         }
@@ -416,7 +431,9 @@ impl Bvh {
                                 return bad(format!("node {n} slot {i}: box does not hold triangle {p}"));
                             }
                             let stored = self.blocks[(off + k) / LANES].triangle((off + k) % LANES);
-                            if stored.map(|v| v.to_array().map(f32::to_bits)) != t.map(|v| v.to_array().map(f32::to_bits)) {
+                            if stored.map(|v| v.to_array().map(f32::to_bits))
+                                != t.map(|v| v.to_array().map(f32::to_bits))
+                            {
                                 return bad(format!("triangle {p}'s block copy differs"));
                             }
                             seen[p as usize] += 1;

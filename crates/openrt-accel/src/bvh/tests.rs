@@ -22,16 +22,30 @@ fn same_as_kd_and_oracle(tris: &[Triangle], rays: &[Ray], seed: u64) -> usize {
         let got = bvh.intersect(ray);
         hits += usize::from(got.is_some());
         let want = kd.intersect(ray);
-        assert_eq!(got, want, "ray {i} {ray:?}: BVH and kd-tree differ ({:?} / {:?})", got.map(|h| tris[h.prim as usize]), want.map(|h| tris[h.prim as usize]));
-        oracle.check_closest(ray, got).unwrap_or_else(|e| panic!("ray {i}: {e}"));
+        assert_eq!(
+            got,
+            want,
+            "ray {i} {ray:?}: BVH and kd-tree differ ({:?} / {:?})",
+            got.map(|h| tris[h.prim as usize]),
+            want.map(|h| tris[h.prim as usize])
+        );
+        oracle
+            .check_closest(ray, got)
+            .unwrap_or_else(|e| panic!("ray {i}: {e}"));
         let cut = Ray::new(ray.origin, ray.dir, 0.0, rng.random_range(0.0..6.0));
         let blocked = bvh.occluded(&cut);
         assert_eq!(blocked, kd.occluded(&cut), "shadow ray {i}");
-        oracle.check_occluded(&cut, blocked).unwrap_or_else(|e| panic!("shadow ray {i}: {e}"));
+        oracle
+            .check_occluded(&cut, blocked)
+            .unwrap_or_else(|e| panic!("shadow ray {i}: {e}"));
         // A bound from elsewhere (another instance's hit) is respected.
         let bound = got.map_or(ray.t_max, |h| h.t * 1.5);
         let (mut a, mut b) = (bound, bound);
-        assert_eq!(bvh.intersect_within(ray, &mut a), kd.intersect_within(ray, &mut b), "ray {i}: bounded");
+        assert_eq!(
+            bvh.intersect_within(ray, &mut a),
+            kd.intersect_within(ray, &mut b),
+            "ray {i}: bounded"
+        );
         assert_eq!(a.to_bits(), b.to_bits());
     }
     hits
@@ -43,7 +57,13 @@ fn closed_meshes_soups_and_grids_match_the_kd_tree_and_the_oracle() {
         let tris = meshgen::bumpy_sphere(3000, seed, 0.3);
         let b = Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3));
         let mut rays = meshgen::random_rays(1500, seed + 7, b);
-        rays.extend(meshgen::camera_rays(Vec3::new(0.3, 0.4, -4.0), Vec3::ZERO, 40, 30, 40.0));
+        rays.extend(meshgen::camera_rays(
+            Vec3::new(0.3, 0.4, -4.0),
+            Vec3::ZERO,
+            40,
+            30,
+            40.0,
+        ));
         rays.extend(meshgen::hard_rays(&tris, 500, seed));
         assert!(same_as_kd_and_oracle(&tris, &rays, seed) > 1000);
         let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
@@ -85,16 +105,32 @@ fn the_node_test_equals_its_scalar_twin_bit_for_bit() {
         let mut node = BvhNode::empty();
         let used = rng.random_range(1..=BVH_WIDTH);
         for i in 0..used {
-            let a = Vec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
-            let mut e = Vec3::new(rng.random_range(0.0..2.0), rng.random_range(0.0..2.0), rng.random_range(0.0..2.0));
+            let a = Vec3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+            );
+            let mut e = Vec3::new(
+                rng.random_range(0.0..2.0),
+                rng.random_range(0.0..2.0),
+                rng.random_range(0.0..2.0),
+            );
             if k % 5 == 0 {
                 e.x = 0.0; // flat boxes, as axis-aligned triangles make
             }
             node.set_box(i, &Aabb::new(a, a + e));
             node.child[i] = 0;
         }
-        let o = Vec3::new(rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0));
-        let aim = Vec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+        let o = Vec3::new(
+            rng.random_range(-4.0..4.0),
+            rng.random_range(-4.0..4.0),
+            rng.random_range(-4.0..4.0),
+        );
+        let aim = Vec3::new(
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-2.0..2.0),
+        );
         let mut d = aim - o;
         if k % 7 == 0 {
             d.y = if k % 2 == 0 { 0.0 } else { -0.0 };
@@ -107,22 +143,28 @@ fn the_node_test_equals_its_scalar_twin_bit_for_bit() {
         let (mask, near) = NodeRay::new(&ray).test(&node, closest);
         let (want, want_near) = node_test_scalar(&ray, &node, closest);
         assert_eq!(mask, want, "case {k}");
-        for i in 0..BVH_WIDTH {
+        for (i, (got, want)) in near.to_array().iter().zip(want_near).enumerate() {
             if mask & (1 << i) != 0 {
-                assert_eq!(near.to_array()[i].to_bits(), want_near[i].to_bits(), "case {k} lane {i}");
+                assert_eq!(got.to_bits(), want.to_bits(), "case {k} lane {i}");
             }
         }
         assert_eq!(mask >> used, 0, "an unused slot was hit");
         for i in 0..used {
             // Never less than the robust clip of one box (`Aabb::clip`).
             if node.child_box(i).clip(&ray.with_interval(ray.t_min, closest)).is_some() {
-                assert!(mask & (1 << i) != 0, "case {k} slot {i}: a box the clip meets is skipped");
+                assert!(
+                    mask & (1 << i) != 0,
+                    "case {k} slot {i}: a box the clip meets is skipped"
+                );
                 clipped += 1;
             }
         }
         hits += mask.count_ones();
     }
-    assert!(hits > 1_500 && clipped > 1_500, "{hits} box hits ({clipped} clipped): the sweep tests too little");
+    assert!(
+        hits > 1_500 && clipped > 1_500,
+        "{hits} box hits ({clipped} clipped): the sweep tests too little"
+    );
 }
 
 #[test]
@@ -148,7 +190,11 @@ fn refits_follow_moving_triangles_and_rebuild_when_the_tree_degrades() {
     let scattered: Vec<Triangle> = tris
         .iter()
         .map(|t| {
-            let s = Vec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0));
+            let s = Vec3::new(
+                rng.random_range(-5.0..5.0),
+                rng.random_range(-5.0..5.0),
+                rng.random_range(-5.0..5.0),
+            );
             t.map(|v| v + s)
         })
         .collect();
@@ -180,21 +226,32 @@ fn hostile_inputs_build_valid_shallow_trees() {
     let progression: Vec<Triangle> = (0..3000)
         .map(|i| {
             let s = 1.5f32.powi(-(i % 60)) + i as f32 * 1e-3;
-            [Vec3::splat(s), Vec3::splat(s) + Vec3::X * s, Vec3::splat(s) + Vec3::Y * s]
+            [
+                Vec3::splat(s),
+                Vec3::splat(s) + Vec3::X * s,
+                Vec3::splat(s) + Vec3::Y * s,
+            ]
         })
         .collect();
     let mut junk = meshgen::bumpy_sphere(500, 1, 0.1);
     junk.push([Vec3::ONE; 3]);
     junk.push([Vec3::NAN, Vec3::X, Vec3::Y]);
     junk.push([Vec3::INFINITY, Vec3::X, Vec3::Y]);
-    for (name, tris) in [("same", same), ("progression", progression), ("junk", junk), ("empty", Vec::new())] {
+    for (name, tris) in [
+        ("same", same),
+        ("progression", progression),
+        ("junk", junk),
+        ("empty", Vec::new()),
+    ] {
         let bvh = Bvh::build(tris.clone()).unwrap();
         bvh.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(bvh.stats().depth <= BVH_MAX_DEPTH, "{name}");
         let rays = meshgen::random_rays(300, 2, Aabb::new(Vec3::splat(-1.0), Vec3::splat(2.0)));
         let oracle = BruteForce::new(&tris);
         for ray in &rays {
-            oracle.check_closest(ray, bvh.intersect(ray)).unwrap_or_else(|e| panic!("{name}: {e}"));
+            oracle
+                .check_closest(ray, bvh.intersect(ray))
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
         }
     }
     let junk_stats = Bvh::build(meshgen::bumpy_sphere(10, 1, 0.1)).unwrap();
@@ -243,7 +300,11 @@ fn packet_forms_answer_lane_by_lane() {
         let found = bvh.intersect_packet_in(&rays, 0b1011_0111, &mut closest, &mut hits, None, None);
         let (blocked, leaf) = bvh.occluder_packet_in(&rays, 0b1011_0111, None, None);
         for l in 0..8 {
-            let want = if 0b1011_0111 & (1 << l) != 0 { bvh.intersect(&rays[l]) } else { None };
+            let want = if 0b1011_0111 & (1 << l) != 0 {
+                bvh.intersect(&rays[l])
+            } else {
+                None
+            };
             assert_eq!(hits[l], want);
             assert_eq!(found & (1 << l) != 0, want.is_some());
             assert_eq!(blocked & (1 << l) != 0, want.is_some());
