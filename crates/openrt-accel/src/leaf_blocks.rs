@@ -221,12 +221,26 @@ pub(crate) fn beats(t: f32, prim: u32, closest: f32, tie: u32) -> bool {
 /// `tie` of a walk without a hit yet.
 pub(crate) const NO_TIE: u32 = u32::MAX;
 
-/// The kernel's bound for a walk at `(closest, tie)`: one step above a hit
+/// The kernel's bound for a walk at `(closest, tie)`: a little above a hit
 /// already found, so that an exact tie reaches [`beats`].
+///
+/// NOTE: the kernel compares the scaled distance `t det` with `bound det`,
+/// and `t` itself is rounded twice from it: a hit whose `t` equals
+/// `closest` bit for bit can fail the scaled test against `next_up(closest)`
+/// (seen on the kitchen's coplanar overlaps). [`TIE_SLACK`] relative is far
+/// above those roundings; hits it lets through beyond `closest` lose in
+/// [`beats`].
 #[inline]
 pub(crate) fn tie_bound(closest: f32, tie: u32) -> f32 {
-    if tie == NO_TIE { closest } else { closest.next_up() }
+    if tie == NO_TIE {
+        closest
+    } else {
+        closest + closest.abs() * TIE_SLACK
+    }
 }
+
+/// See [`tie_bound`].
+pub(crate) const TIE_SLACK: f32 = 1.0 / 1_048_576.0;
 
 /// Tests the triangles of one leaf and returns the hit that beats the
 /// walk's best `(t_max, tie)` by [`beats`], with its triangle index.
@@ -354,7 +368,7 @@ pub(crate) fn leaf_packet<const N: usize>(
                 }
                 if ties.is_some() {
                     for l in crate::packet::lanes_of(h.hit) {
-                        bound[l] = closest[l].next_up();
+                        bound[l] = tie_bound(closest[l], 0);
                     }
                 }
             }

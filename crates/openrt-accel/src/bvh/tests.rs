@@ -78,6 +78,36 @@ fn closed_meshes_soups_and_grids_match_the_kd_tree_and_the_oracle() {
 }
 
 #[test]
+fn coplanar_overlaps_give_the_same_triangle_in_both_structures() {
+    // Two grids in one plane, offset by a third of a cell: every ray hits
+    // two triangles at the same distance, often bit for bit, and the tie
+    // rule (lower index) must decide it in both structures alike.
+    let mut tris = meshgen::grid(12, 12);
+    let shifted: Vec<Triangle> = tris.iter().map(|t| t.map(|v| v + Vec3::new(0.37, 0.29, 0.0))).collect();
+    tris.extend(shifted);
+    let mut rays = meshgen::camera_rays(Vec3::new(5.0, 4.0, -9.0), Vec3::new(6.0, 6.0, 0.0), 64, 64, 50.0);
+    rays.extend(meshgen::camera_rays(
+        Vec3::new(6.0, 6.0, 9.0),
+        Vec3::new(6.0, 6.0, 0.0),
+        64,
+        64,
+        50.0,
+    ));
+    let bvh = Bvh::build(tris.clone()).unwrap();
+    let mut ties = 0;
+    for r in &rays {
+        if let Some(h) = bvh.intersect(r) {
+            let other = tris.iter().enumerate().any(|(p, t)| {
+                p as u32 != h.prim && crate::intersect_triangle(r, t, f32::INFINITY).is_some_and(|x| x.0 == h.t)
+            });
+            ties += usize::from(other);
+        }
+    }
+    assert!(ties > 500, "only {ties} exact ties: the test proves little");
+    assert!(same_as_kd_and_oracle(&tris, &rays, 2) > 4000);
+}
+
+#[test]
 fn axis_parallel_rays_along_faces_match_the_kd_tree() {
     // Rays with zero direction components running in the planes of
     // axis-aligned faces: the node test's parallel path decides them.
