@@ -17,6 +17,7 @@
 
 mod build;
 mod node;
+mod packet;
 mod refit;
 mod walk;
 
@@ -27,9 +28,10 @@ pub use node::{BVH_MAX_DEPTH, BVH_WIDTH, BvhNode, BvhSlot};
 
 use crate::frustum::Frustum;
 use crate::kdnode::KdNode;
-use crate::leaf_blocks::{BlockRay, LANES, LeafLists, NO_TIE, TriBlock, leaf_any, leaf_closest};
+use crate::leaf_blocks::{BlockRay, LANES, LeafLists, NO_TIE, TriBlock, leaf_any, leaf_closest, leaf_packet};
 use crate::packet::lanes_of;
 use crate::triangle::is_valid_triangle;
+use crate::triangle_packet::PacketBlockRay;
 use crate::{Aabb, AccelError, Hit, PacketBoxes, Ray, Triangle};
 use build::{Ref, bounds_of, build_into};
 use node::{EMPTY_SLOT, LEAF_BIT};
@@ -81,6 +83,50 @@ pub struct Bvh {
     tris: Vec<Triangle>,
     bounds: Aabb,
     stats: BvhStats,
+}
+
+/// `true` when enough of a packet's lanes reach a leaf for the test across
+/// lanes (one triangle, all lanes) to beat each lane's own (four triangles,
+/// one lane): a third of the lanes, as in the kd-tree's packets.
+#[inline]
+fn dense<const N: usize>(active: u32) -> bool {
+    active.count_ones() as usize * 3 >= N
+}
+
+/// What a packet walk needs made once: the frustum (the caller's, else
+/// one made from rays that share an origin or an end point) and the lanes
+/// laid out (the caller's, else made here).
+struct Prepared<'a, const N: usize> {
+    given: Option<&'a Frustum>,
+    own: Option<Frustum>,
+    laid_out: Option<&'a PacketBoxes<N>>,
+    own_boxes: Option<PacketBoxes<N>>,
+}
+
+impl<'a, const N: usize> Prepared<'a, N> {
+    fn new(rays: &[Ray; N], live: u32, given: Option<&'a Frustum>, laid_out: Option<&'a PacketBoxes<N>>) -> Self {
+        let own = given
+            .is_none()
+            .then(|| Frustum::new(rays, live).or_else(|| Frustum::ending(rays, live)))
+            .flatten();
+        let own_boxes = laid_out.is_none().then(|| PacketBoxes::new(rays, live));
+        Self {
+            given,
+            own,
+            laid_out,
+            own_boxes,
+        }
+    }
+
+    fn frustum(&self) -> Option<&Frustum> {
+        self.given.or(self.own.as_ref())
+    }
+
+    fn boxes(&self) -> &PacketBoxes<N> {
+        self.laid_out
+            .or(self.own_boxes.as_ref())
+            .expect("`new` lays the lanes out when the caller did not")
+    }
 }
 
 /// Refuses more than [`BVH_MAX_PRIMITIVES`] triangles.
@@ -322,47 +368,176 @@ impl Bvh {
 
     /// [`Bvh::intersect_within`] for the `lanes` of a packet, with the
     /// signature of [`crate::KdTree::intersect_packet_in`]: lane `l` gets
-    /// exactly `intersect_within(&rays[l], &mut closest[l])`. Each lane walks
-    /// the tree alone (the hybrid's single-ray path).
+    /// exactly `intersect_within(&rays[l], &mut closest[l])`, written to
+    /// `hits[l]` when there is one; returns the lanes that found a closer
+    /// hit. The lanes walk the tree together (`packet.rs`); `frustum`: the
+    /// packet's when the caller has it (else made from the rays when they
+    /// share an origin or an end point), `laid_out`: the rays laid out.
     pub fn intersect_packet_in<const N: usize>(
         &self,
         rays: &[Ray; N],
         lanes: u32,
         closest: &mut [f32; N],
         hits: &mut [Option<Hit>; N],
-        _frustum: Option<&Frustum>,
-        _laid_out: Option<&PacketBoxes<N>>,
+        frustum: Option<&Frustum>,
+        laid_out: Option<&PacketBoxes<N>>,
     ) -> u32 {
-        let mut found = 0;
-        for l in lanes_of(lanes) {
+        let (_, _, live) = match laid_out {
+            Some(b) => b.clip(&self.bounds, lanes, closest),
+            None => self.bounds.clip_lanes(rays, lanes, closest),
+        };
+        let alone = if N < 4 {
+            live
+        } else {
+            packet::parallel_lanes(rays, live)
+        };
+        let mut found = 0u32;
+        for l in lanes_of(alone) {
             if let Some(h) = self.intersect_within(&rays[l], &mut closest[l]) {
                 hits[l] = Some(h);
                 found |= 1 << l;
             }
         }
+        let live = live & !alone;
+        if live == 0 {
+            return found;
+        }
+        let prep = Prepared::new(rays, live, frustum, laid_out);
+        let frustum = prep.frustum();
+        let cull = packet::Cull::of(frustum, prep.boxes(), live);
+        let lr = packet::LaneRays::new(rays);
+        let pbr = PacketBlockRay::new(rays, live);
+        let mut brs: Option<[BlockRay; N]> = None;
+        let mut ties = [NO_TIE; N];
+        packet::walk_packet(&self.nodes, &lr, live, closest, &cull, |off, count, active, closest| {
+            let leaf = KdNode::leaf(off, count);
+            if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
+                leaf_packet(
+                    pbr,
+                    rays,
+                    frustum,
+                    active,
+                    leaf,
+                    &self.prim_ids,
+                    &self.blocks,
+                    closest,
+                    Some(&mut ties),
+                    None,
+                    |h, prim, closest| {
+                        for l in lanes_of(h.hit) {
+                            let (t, b1, b2) = h.lane(l);
+                            closest[l] = t;
+                            hits[l] = Some(Hit { t, prim, b1, b2 });
+                        }
+                        found |= h.hit;
+                        0
+                    },
+                );
+                return 0;
+            }
+            let brs = brs.get_or_insert_with(|| std::array::from_fn(|l| BlockRay::new(&rays[l])));
+            for l in lanes_of(active) {
+                if let Some((prim, (t, b1, b2))) = leaf_closest(
+                    &rays[l],
+                    &brs[l],
+                    leaf,
+                    &self.prim_ids,
+                    &self.blocks,
+                    closest[l],
+                    ties[l],
+                ) {
+                    ties[l] = prim;
+                    closest[l] = t;
+                    hits[l] = Some(Hit { t, prim, b1, b2 });
+                    found |= 1 << l;
+                }
+            }
+            0
+        });
         found
     }
 
     /// [`Bvh::occluder`] for the `lanes` of a packet, with the signature of
     /// [`crate::KdTree::occluder_packet_in`]: the blocked lanes and the leaf
-    /// where the first of them was blocked.
+    /// where one of them was blocked.
     #[must_use]
     pub fn occluder_packet_in<const N: usize>(
         &self,
         rays: &[Ray; N],
         lanes: u32,
-        _frustum: Option<&Frustum>,
-        _laid_out: Option<&PacketBoxes<N>>,
+        frustum: Option<&Frustum>,
+        laid_out: Option<&PacketBoxes<N>>,
     ) -> (u32, Option<KdNode>) {
-        let mut blocked = 0;
-        let mut first = None;
-        for l in lanes_of(lanes) {
+        let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
+        let (_, _, live) = match laid_out {
+            Some(b) => b.clip(&self.bounds, lanes, &closest),
+            None => self.bounds.clip_lanes(rays, lanes, &closest),
+        };
+        let alone = if N < 4 {
+            live
+        } else {
+            packet::parallel_lanes(rays, live)
+        };
+        let mut blocked = 0u32;
+        let mut found = None;
+        for l in lanes_of(alone) {
             if let Some(leaf) = self.occluder(&rays[l]) {
                 blocked |= 1 << l;
-                first = first.or(Some(leaf));
+                found = found.or(Some(leaf));
             }
         }
-        (blocked, first)
+        let live = live & !alone;
+        if live == 0 {
+            return (blocked, found);
+        }
+        let prep = Prepared::new(rays, live, frustum, laid_out);
+        let frustum = prep.frustum();
+        let cull = packet::Cull::of(frustum, prep.boxes(), live);
+        let lr = packet::LaneRays::new(rays);
+        let pbr = PacketBlockRay::new(rays, live);
+        let mut brs: Option<[BlockRay; N]> = None;
+        blocked |= packet::walk_packet(
+            &self.nodes,
+            &lr,
+            live,
+            &mut closest,
+            &cull,
+            |off, count, active, closest| {
+                let leaf = KdNode::leaf(off, count);
+                let hit = if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
+                    leaf_packet(
+                        pbr,
+                        rays,
+                        frustum,
+                        active,
+                        leaf,
+                        &self.prim_ids,
+                        &self.blocks,
+                        closest,
+                        None,
+                        None,
+                        |h, _, _| h.hit,
+                    )
+                } else {
+                    let brs = brs.get_or_insert_with(|| std::array::from_fn(|l| BlockRay::new(&rays[l])));
+                    lanes_of(active).fold(0, |m, l| {
+                        m | (u32::from(leaf_any(
+                            &rays[l],
+                            &brs[l],
+                            leaf,
+                            &self.prim_ids,
+                            &self.blocks,
+                            closest[l],
+                        )) << l)
+                    })
+                };
+                if hit != 0 {
+                    found = found.or(Some(leaf));
+                }
+                hit
+            },
+        );
+        (blocked, found)
     }
 
     /// Checks every invariant: nodes reached once each from the root, only

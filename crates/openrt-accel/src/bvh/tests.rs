@@ -318,29 +318,83 @@ fn validate_catches_broken_trees() {
     assert!(moved.validate().is_err(), "a block that differs from its triangle");
 }
 
-#[test]
-fn packet_forms_answer_lane_by_lane() {
-    let tris = meshgen::bumpy_sphere(2000, 6, 0.2);
-    let bvh = Bvh::build(tris).unwrap();
-    let rays = meshgen::camera_rays(Vec3::new(0.2, 0.1, -4.0), Vec3::ZERO, 16, 16, 50.0);
-    for chunk in rays.chunks_exact(8) {
-        let rays: [Ray; 8] = std::array::from_fn(|l| chunk[l]);
-        let mut closest = rays.map(|r| r.t_max);
-        let mut hits = [None; 8];
-        let found = bvh.intersect_packet_in(&rays, 0b1011_0111, &mut closest, &mut hits, None, None);
-        let (blocked, leaf) = bvh.occluder_packet_in(&rays, 0b1011_0111, None, None);
-        for l in 0..8 {
-            let want = if 0b1011_0111 & (1 << l) != 0 {
-                bvh.intersect(&rays[l])
-            } else {
-                None
-            };
-            assert_eq!(hits[l], want);
+/// Packets of `N` lanes (masked at random) answer as the single-ray walk,
+/// bit for bit, closest and any hit.
+fn packets_as_single_rays<const N: usize>(bvh: &Bvh, rays: &[Ray], seed: u64) -> usize {
+    let mut rng = SmallRng::seed_from_u64(seed);
+    let mut hits = 0;
+    for chunk in rays.chunks(N) {
+        let pk: [Ray; N] = std::array::from_fn(|l| chunk[l % chunk.len()]);
+        let mut lanes = crate::lanes_mask(chunk.len());
+        if rng.random_range(0..4) == 0 {
+            lanes &= rng.random::<u32>();
+        }
+        let mut closest = pk.map(|r| r.t_max);
+        let mut got = [None; N];
+        let found = bvh.intersect_packet_in(&pk, lanes, &mut closest, &mut got, None, None);
+        let (blocked, leaf) = bvh.occluder_packet_in(&pk, lanes, None, None);
+        for l in 0..N {
+            let on = lanes & (1 << l) != 0;
+            let want = if on { bvh.intersect(&pk[l]) } else { None };
+            assert_eq!(got[l], want, "lane {l} of {N}: {:?}", pk[l]);
             assert_eq!(found & (1 << l) != 0, want.is_some());
-            assert_eq!(blocked & (1 << l) != 0, want.is_some());
+            assert_eq!(blocked & (1 << l) != 0, on && bvh.occluded(&pk[l]), "lane {l} occluded");
+            hits += usize::from(want.is_some());
         }
         if let Some(leaf) = leaf {
-            assert_ne!(bvh.leaf_blocks_packet(&rays, blocked, leaf, 1e-6, None) | 1, 0);
+            assert!(bvh.lists().owns(leaf), "the named leaf is one of the tree's");
+        }
+    }
+    hits
+}
+
+#[test]
+fn packets_answer_as_single_rays() {
+    let tris = meshgen::bumpy_sphere(4000, 6, 0.3);
+    let bvh = Bvh::build(tris.clone()).unwrap();
+    let b = Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3));
+    // Coherent camera packets (a frustum), shadow-like packets ending at
+    // one point, scattered rays (intervals), rays with zero components.
+    let camera = meshgen::camera_rays(Vec3::new(0.2, 0.1, -4.0), Vec3::ZERO, 32, 32, 50.0);
+    let light = Vec3::new(3.0, 4.0, -2.0);
+    let shadow: Vec<Ray> = meshgen::random_rays(1024, 3, b)
+        .iter()
+        .map(|r| Ray::new(r.origin, light - r.origin, 0.0, 1.0))
+        .collect();
+    let random = meshgen::random_rays(1024, 4, b);
+    let mut axis = Vec::new();
+    for k in 0..256 {
+        let o = Vec3::new((k % 16) as f32 * 0.15 - 1.2, (k / 16) as f32 * 0.15 - 1.2, -3.0);
+        axis.push(Ray::infinite(
+            o,
+            if k % 3 == 0 {
+                Vec3::Z
+            } else {
+                Vec3::new(0.01, 0.02, 1.0)
+            },
+        ));
+    }
+    let mut coplanar = meshgen::grid(12, 12);
+    let shifted: Vec<Triangle> = coplanar
+        .iter()
+        .map(|t| t.map(|v| v + Vec3::new(0.37, 0.29, 0.0)))
+        .collect();
+    coplanar.extend(shifted);
+    let grid = Bvh::build(coplanar).unwrap();
+    let grid_rays = meshgen::camera_rays(Vec3::new(5.0, 4.0, -9.0), Vec3::new(6.0, 6.0, 0.0), 32, 32, 50.0);
+    for (name, bvh, rays, least) in [
+        ("camera", &bvh, &camera, 200),
+        ("shadow", &bvh, &shadow, 100),
+        ("random", &bvh, &random, 80),
+        ("axis", &bvh, &axis, 50),
+        ("coplanar", &grid, &grid_rays, 500),
+    ] {
+        for (n, h) in [
+            (4, packets_as_single_rays::<4>(bvh, rays, 1)),
+            (8, packets_as_single_rays::<8>(bvh, rays, 2)),
+            (16, packets_as_single_rays::<16>(bvh, rays, 3)),
+        ] {
+            assert!(h >= least, "{name} N={n}: {h} hits");
         }
     }
 }

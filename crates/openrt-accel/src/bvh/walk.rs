@@ -18,7 +18,7 @@ use crate::Ray;
 use crate::numeric::gamma;
 
 /// Relative widening of a box's far distance (Ize 2013).
-const FAR_WIDEN: f32 = 1.0 + 2.0 * gamma(3);
+pub(crate) const FAR_WIDEN: f32 = 1.0 + 2.0 * gamma(3);
 
 /// Relative lowering of a box's near distance: far above the rounding of
 /// the slab distances (3 roundings) and of the triangle test's `t`, so a

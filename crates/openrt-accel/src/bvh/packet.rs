@@ -1,0 +1,246 @@
+//! Packets walking the wide BVH together (Wald, Boulos & Shirley, "Ray
+//! tracing deformable scenes using dynamic bounding volume hierarchies",
+//! ACM TOG 2007): one node fetch per packet, whole-packet culling of a
+//! node's four children by the packet's frustum (shared origin or end
+//! point) or, without one, by interval arithmetic over the lanes, then the
+//! first-active-lane test per child: lanes are tested four at a time until
+//! a group has a hit; earlier lanes miss and are dropped, later ones are
+//! carried into the child untested. Leaves test each triangle against all
+//! carried lanes at once (`leaf_blocks.rs`), each lane over its own bound.
+//!
+//! Every lane's answer is the single-ray walk's: the lane tests are the
+//! single-ray node test lane by lane (the same operations, the same
+//! decisions), the culling tests reject only boxes no lane reaches, carried
+//! lanes only test more triangles, and the tie rule makes the closest hit
+//! independent of the order in which triangles are met (tested against
+//! the single-ray walk on every shipped scene).
+
+use wide::f32x4;
+
+use super::node::{BVH_WIDTH, BvhNode, EMPTY_SLOT, LEAF_BIT, STACK};
+use super::walk::{FAR_WIDEN, NEAR_SLACK};
+use crate::box_quad::BoxQuad;
+use crate::frustum::Frustum;
+use crate::packet_interval::PacketInterval;
+use crate::{PacketBoxes, Ray};
+
+/// Lane groups of four in the widest packet (16 lanes).
+const MAX_GROUPS: usize = 4;
+
+/// A packet's rays four lanes to a register, for the lane test.
+pub(crate) struct LaneRays {
+    o: [[f32x4; MAX_GROUPS]; 3],
+    inv: [[f32x4; MAX_GROUPS]; 3],
+    t_min: [f32x4; MAX_GROUPS],
+    groups: usize,
+}
+
+/// Lanes with a zero direction component (either sign): their slab tests
+/// need the origin-only rule of the single-ray test, so they walk alone.
+pub(crate) fn parallel_lanes<const N: usize>(rays: &[Ray; N], lanes: u32) -> u32 {
+    crate::lanes_of(lanes).fold(0, |m, l| {
+        m | (u32::from(rays[l].dir.cmpeq(glam::Vec3::ZERO).any()) << l)
+    })
+}
+
+impl LaneRays {
+    pub(crate) fn new<const N: usize>(rays: &[Ray; N]) -> Self {
+        let groups = N / 4;
+        let lanes4 = |f: &dyn Fn(&Ray) -> f32| -> [f32x4; MAX_GROUPS] {
+            std::array::from_fn(|g| {
+                if g < groups {
+                    f32x4::new(std::array::from_fn(|i| f(&rays[g * 4 + i])))
+                } else {
+                    f32x4::ZERO
+                }
+            })
+        };
+        Self {
+            o: [
+                lanes4(&|r| r.origin.x),
+                lanes4(&|r| r.origin.y),
+                lanes4(&|r| r.origin.z),
+            ],
+            inv: [
+                lanes4(&|r| r.inv_dir.x),
+                lanes4(&|r| r.inv_dir.y),
+                lanes4(&|r| r.inv_dir.z),
+            ],
+            t_min: lanes4(&|r| r.t_min),
+            groups,
+        }
+    }
+
+    /// The single-ray node test of child `i` of `node` for the four lanes
+    /// of group `g`, each up to its `closest`: the lanes that may meet the
+    /// box, and their lowered entry distances.
+    ///
+    /// NOTE: `min`/`max` of the two slab distances pick what the single-ray
+    /// test picks by the direction's sign (for a box with `lo <= hi` and a
+    /// non-zero reciprocal, rounding keeps the order), so the decisions are
+    /// the same.
+    #[inline]
+    fn test(&self, node: &BvhNode, i: usize, g: usize, closest: f32x4) -> (u32, f32x4) {
+        let mut near = self.t_min[g];
+        let mut far = f32x4::splat(f32::INFINITY);
+        for a in 0..3 {
+            let lo = f32x4::splat(node.lo[a].to_array()[i]);
+            let hi = f32x4::splat(node.hi[a].to_array()[i]);
+            let t1 = (lo - self.o[a][g]) * self.inv[a][g];
+            let t2 = (hi - self.o[a][g]) * self.inv[a][g];
+            near = near.fast_max(t1.fast_min(t2));
+            far = far.fast_min(t1.fast_max(t2));
+        }
+        let far = (far * f32x4::splat(FAR_WIDEN)).fast_min(closest);
+        let near = near - near.abs() * f32x4::splat(NEAR_SLACK);
+        (near.simd_le(far).to_bitmask() & 0xF, near)
+    }
+}
+
+/// Whole-packet culling of a node's children.
+pub(crate) enum Cull<'a> {
+    /// The lanes' frustum.
+    Frustum(&'a Frustum),
+    /// Interval arithmetic over the lanes (and the largest bound of the packet).
+    Interval(PacketInterval),
+    /// None (every child goes on to the lane test).
+    None,
+}
+
+impl Cull<'_> {
+    /// The packet's culling: its frustum, else intervals over its lanes.
+    pub(crate) fn of<'a, const N: usize>(frustum: Option<&'a Frustum>, boxes: &PacketBoxes<N>, lanes: u32) -> Cull<'a> {
+        match frustum {
+            Some(f) => Cull::Frustum(f),
+            None => PacketInterval::new(boxes, lanes).map_or(Cull::None, Cull::Interval),
+        }
+    }
+
+    #[inline]
+    fn rejects(&self, node: &BvhNode, t_max: f32) -> u32 {
+        let quad = || BoxQuad {
+            min: node.lo,
+            max: node.hi,
+        };
+        match self {
+            Cull::Frustum(f) => f.rejects_box_quad(&quad()),
+            Cull::Interval(iv) => iv.rejects_box_quad(&quad(), t_max),
+            Cull::None => 0,
+        }
+    }
+}
+
+/// A deferred child and the lanes carried into it.
+#[derive(Clone, Copy)]
+struct Entry {
+    child: u32,
+    count: u32,
+    lanes: u32,
+}
+
+/// Walks the packet's `lanes` through `nodes` (see the module docs) and
+/// calls `leaf(offset, count, lanes, closest)` for each leaf reached with
+/// the lanes carried into it; the callback lowers `closest` for its hits
+/// and returns the lanes that are done (any hit), which leave the walk.
+/// Returns the lanes done.
+#[inline]
+pub(crate) fn walk_packet<const N: usize, L>(
+    nodes: &[BvhNode],
+    lr: &LaneRays,
+    lanes: u32,
+    closest: &mut [f32; N],
+    cull: &Cull<'_>,
+    mut leaf: L,
+) -> u32
+where
+    L: FnMut(u32, u32, u32, &mut [f32; N]) -> u32,
+{
+    if nodes.is_empty() || lanes == 0 {
+        return 0;
+    }
+    let mut live = lanes;
+    // PERF: not zeroed; entries are written before they are read.
+    let mut stack = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
+    let mut sp = 0usize;
+    let mut cur = Entry {
+        child: 0,
+        count: 0,
+        lanes,
+    };
+    loop {
+        let active = cur.lanes & live;
+        if active != 0 {
+            if cur.child & LEAF_BIT != 0 {
+                live &= !leaf(cur.child & !LEAF_BIT, cur.count, active, closest);
+                if live == 0 {
+                    return lanes;
+                }
+            } else {
+                let node = &nodes[cur.child as usize];
+                let far = crate::lanes_of(active).fold(f32::NEG_INFINITY, |m, l| m.max(closest[l]));
+                let occupied = (0..BVH_WIDTH).fold(0u32, |m, i| m | (u32::from(node.child[i] != EMPTY_SLOT) << i));
+                let mut cand = occupied & !cull.rejects(node, far);
+                let bounds: [f32x4; MAX_GROUPS] = std::array::from_fn(|g| {
+                    if g < lr.groups {
+                        f32x4::new(std::array::from_fn(|i| closest[g * 4 + i]))
+                    } else {
+                        f32x4::ZERO
+                    }
+                });
+                let mut kids = [(0u32, 0.0f32); BVH_WIDTH];
+                let mut n = 0;
+                while cand != 0 {
+                    let i = cand.trailing_zeros() as usize;
+                    cand &= cand - 1;
+                    // First active lane group with a hit: earlier lanes
+                    // miss, that group's lanes are exact, later ones carried.
+                    for (g, &bound) in bounds.iter().enumerate().take(lr.groups) {
+                        let want = (active >> (4 * g)) & 0xF;
+                        if want == 0 {
+                            continue;
+                        }
+                        let (hit, near) = lr.test(node, i, g, bound);
+                        let hit = hit & want;
+                        if hit != 0 {
+                            let later = if 4 * g + 4 >= 32 {
+                                0
+                            } else {
+                                active & !((1u32 << (4 * g + 4)) - 1)
+                            };
+                            let first = hit.trailing_zeros() as usize;
+                            kids[n] = ((hit << (4 * g)) | later, near.to_array()[first]);
+                            kids[n].0 |= (i as u32) << 24; // slot index kept in the high bits
+                            n += 1;
+                            break;
+                        }
+                    }
+                }
+                if n > 0 {
+                    // Nearest first lane's entry last on the stack.
+                    let by_near = |k: &(u32, f32)| k.1;
+                    kids[..n].sort_unstable_by(|a, b| by_near(b).total_cmp(&by_near(a)));
+                    let entry = |k: (u32, f32)| {
+                        let i = (k.0 >> 24) as usize;
+                        Entry {
+                            child: node.child[i],
+                            count: node.count[i],
+                            lanes: k.0 & 0x00FF_FFFF,
+                        }
+                    };
+                    for &k in &kids[..n - 1] {
+                        stack[sp].write(entry(k));
+                        sp += 1;
+                    }
+                    cur = entry(kids[n - 1]);
+                    continue;
+                }
+            }
+        }
+        if sp == 0 {
+            return lanes & !live;
+        }
+        sp -= 1;
+        // SAFETY: entries below `sp` were written by the pushes above.
+        cur = unsafe { stack[sp].assume_init() };
+    }
+}
