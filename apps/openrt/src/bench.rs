@@ -10,7 +10,8 @@ use openrt_accel::oracle::BruteForce;
 use openrt_accel::{BuilderKind, Hit};
 use openrt_accel::{PacketWidth, Ray};
 use openrt_core::{
-    Backend, Image, OccluderHint, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool, first_hit_shadow_ray,
+    Accel, Backend, Image, OccluderHint, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool,
+    first_hit_shadow_ray,
 };
 use openrt_scene::ScenePlayer;
 
@@ -113,8 +114,30 @@ fn image_diff(kd: &Image, img: &Image) -> (bool, f64) {
     (a == b, off as f64 / (a.len() / 3).max(1) as f64)
 }
 
-fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut Vec<ImageDiff>) -> Result<(), String> {
+/// The name of a backend's rows: with BVHs under the instances, the kd
+/// backends' packets and single rays are `bvh` and `bvh-single`.
+fn label(accel: Accel, b: Backend) -> &'static str {
+    match (accel, b) {
+        (Accel::Bvh, Backend::Kd) => "bvh",
+        (Accel::Bvh, Backend::KdSingle) => "bvh-single",
+        _ => b.name(),
+    }
+}
+
+/// One scene's frames through every backend of the build, with `accel`
+/// under the instances (with BVHs, only the backends that traverse them).
+/// `reference`: the `kd` images of the first sampled frame, written by the
+/// kd pass and compared with by the BVH pass.
+fn measure_scene(
+    o: &BenchOptions,
+    name: &str,
+    accel: Accel,
+    rows: &mut Vec<Row>,
+    diffs: &mut Vec<ImageDiff>,
+    reference: &mut Vec<Image>,
+) -> Result<(), String> {
     let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+    player.ctx_mut().set_accel(accel);
     let n = player.frames();
     // Warm-up: the first commit builds every tree.
     player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
@@ -131,11 +154,14 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
     let renderers: Vec<(usize, Renderer)> = pools
         .iter()
         .flat_map(|(t, pool)| {
-            Backend::ALL.iter().map(move |&b| {
-                let mut r = Renderer::with_pool(pool.clone());
-                r.set_backend(b);
-                (*t, r)
-            })
+            Backend::ALL
+                .iter()
+                .filter(move |&&b| accel == Accel::Kd || matches!(b, Backend::Kd | Backend::KdSingle))
+                .map(move |&b| {
+                    let mut r = Renderer::with_pool(pool.clone());
+                    r.set_backend(b);
+                    (*t, r)
+                })
         })
         .collect();
     // Warm-up: a peer backend builds its own scene on its first frame,
@@ -179,14 +205,16 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
                         .map_err(|e| e.to_string())?;
                     // The first sampled frame's images on the fewest threads, against kd's.
                     if f == samples[0] && threads == o.threads[0] {
-                        if r.backend() == Backend::Kd {
+                        let against = if accel == Accel::Kd { &kd_images } else { &*reference };
+                        if accel == Accel::Kd && r.backend() == Backend::Kd {
                             kd_images.push(img.clone());
-                        } else if let Some(kd) = kd_images.get(mi) {
+                            reference.push(img.clone());
+                        } else if let Some(kd) = against.get(mi) {
                             let (identical, off_share) = image_diff(kd, img);
                             diffs.push(ImageDiff {
                                 scene: name.to_string(),
                                 mode: ["GL-like", "Whitted"][mi],
-                                backend: r.backend().name(),
+                                backend: label(accel, r.backend()),
                                 identical,
                                 off_share,
                             });
@@ -209,7 +237,7 @@ fn measure_scene(o: &BenchOptions, name: &str, rows: &mut Vec<Row>, diffs: &mut 
             rows.push(Row {
                 scene: name.to_string(),
                 mode,
-                backend: r.backend().name(),
+                backend: label(accel, r.backend()),
                 threads: *threads,
                 commit_ms: median(a.0),
                 toplevel_ms: median(a.1),
@@ -232,6 +260,8 @@ struct KindRow {
     packet: f64,
     /// Embree one by one and in packets (builds with `--features embree`).
     embree: Option<(f64, f64)>,
+    /// The same queries with BVHs under the instances: one by one, packets.
+    bvh: (f64, f64),
     rays: usize,
 }
 
@@ -246,6 +276,10 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
     player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
     player.set_time(t).map_err(|e| e.to_string())?;
     let scene = player.ctx().scene();
+    // The same frame with BVHs under the instances.
+    player.ctx_mut().set_accel(Accel::Bvh);
+    player.set_time(t).map_err(|e| e.to_string())?;
+    let bvh_scene = player.ctx().scene();
     let env = player.env();
     let cam = player.camera(t).rays(o.width, o.height).map_err(|e| e.to_string())?;
     let lanes = PacketWidth::detect().lanes();
@@ -297,7 +331,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
         // Shadow rays try the last occluder of their light first, as the
         // renderer's do (`OccluderHint`, one per light, in the rays' order).
         let nl = env.lights.len().max(1);
-        let single = time(&mut || {
+        let single_of = |scene: &openrt_core::Scene| {
             let mut hints = vec![OccluderHint::new(); nl];
             rays.iter()
                 .enumerate()
@@ -309,16 +343,22 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
                     }
                 })
                 .count()
-        });
+        };
         // Shadow packets hold one block's rays to one light (blocks in
         // order, lights in order within a block), as the renderer traces
         // them: towards the light.
         let lights: Vec<Vec3> = env.lights.iter().map(|l| l.position).collect();
-        let packet = time(&mut || match PacketWidth::detect() {
-            PacketWidth::W4 => packets::<4>(&scene, rays, closest, &lights),
-            PacketWidth::W8 => packets::<8>(&scene, rays, closest, &lights),
-            PacketWidth::W16 => packets::<16>(&scene, rays, closest, &lights),
-        });
+        let packet_of = |scene: &openrt_core::Scene| match PacketWidth::detect() {
+            PacketWidth::W4 => packets::<4>(scene, rays, closest, &lights),
+            PacketWidth::W8 => packets::<8>(scene, rays, closest, &lights),
+            PacketWidth::W16 => packets::<16>(scene, rays, closest, &lights),
+        };
+        let single = time(&mut || single_of(&scene));
+        let packet = time(&mut || packet_of(&scene));
+        let bvh = (
+            n / time(&mut || single_of(&bvh_scene)) / 1e6,
+            n / time(&mut || packet_of(&bvh_scene)) / 1e6,
+        );
         #[cfg(not(feature = "embree"))]
         let embree = None;
         #[cfg(feature = "embree")]
@@ -346,6 +386,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
             single: n / single / 1e6,
             packet: n / packet / 1e6,
             embree,
+            bvh,
             rays: rays.len(),
         });
     }
@@ -698,6 +739,10 @@ struct Rebuild {
     fresh_cost: f64,
     refit_cost: f64,
     embree_ms: Option<f64>,
+    /// The BVH: built afresh, refitted (`Bvh::refit`), refitted frames.
+    bvh_ms: f64,
+    bvh_refit_ms: f64,
+    bvh_refits: usize,
 }
 
 fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
@@ -713,6 +758,8 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
     let emb: Vec<f64> = Vec::new();
     let (mut fresh_cost, mut refit_cost, mut refits, mut triangles) = (0.0, 0.0, 0, 0);
     let mut prev: Option<KdTree> = None;
+    let (mut bvh_fresh, mut bvh_refit, mut bvh_refits) = (Vec::new(), Vec::new(), 0);
+    let mut bvh_prev: Option<openrt_accel::Bvh> = None;
     let frames: Vec<u32> = (0..player.frames()).step_by(2).collect();
     for &f in &frames {
         let st = player.set_time(player.time_of(f)).map_err(|e| e.to_string())?;
@@ -751,6 +798,24 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
         fresh_cost += a.sah_cost();
         refit_cost += b.sah_cost();
         prev = Some(b);
+        let owned = tris.clone();
+        let t0 = Instant::now();
+        let c = pool
+            .install_build(BuilderKind::Fast, n, || openrt_accel::Bvh::build(owned))
+            .map_err(|e| e.to_string())?;
+        bvh_fresh.push(t0.elapsed().as_secs_f64() * 1e3);
+        drop(c);
+        let owned = tris.clone();
+        let t0 = Instant::now();
+        let d = pool
+            .install_build(BuilderKind::Fast, n, || match &bvh_prev {
+                Some(p) => openrt_accel::Bvh::refit(p, owned, openrt_accel::BVH_REFIT_COST_LIMIT),
+                None => openrt_accel::Bvh::build(owned),
+            })
+            .map_err(|e| e.to_string())?;
+        bvh_refit.push(t0.elapsed().as_secs_f64() * 1e3);
+        bvh_refits += usize::from(d.stats().refitted);
+        bvh_prev = Some(d);
         #[cfg(feature = "embree")]
         {
             let t0 = Instant::now();
@@ -773,6 +838,9 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
         fresh_cost: fresh_cost / n as f64,
         refit_cost: refit_cost / n as f64,
         embree_ms: (!emb.is_empty()).then(|| median(emb)),
+        bvh_ms: median(bvh_fresh),
+        bvh_refit_ms: median(bvh_refit),
+        bvh_refits,
     })
 }
 
@@ -785,14 +853,15 @@ fn rebuilds(o: &BenchOptions, out: &mut String) -> Result<Vec<Rebuild>, String> 
     }
     let _ = writeln!(
         out,
-        "\n## Rebuilding the moving triangles ({threads} threads)\n\nEvery other frame of each museum's animation, in order; per frame the moving triangles (handed over as a commit hands them: moved, so their copy is not timed; Embree copies them into its own buffer, timed), each build run where a commit runs it (on the {threads}-thread pool from {} triangles up, below that on the calling thread: `BspBuilder::install_build`), are built afresh by the fast builder, refitted on the last frame's tree (`KdTree::refit_fast`: the old split planes with the new triangles, leaves that overflow split further, rebuilt afresh when the SAH cost exceeds {:.2}x the last full build's; what a commit does by default), and{} built by Embree at LOW quality; medians. SAH cost: expected steps and tests per ray (`KdTree::sah_cost`), mean over the frames.\n\n| scene | triangles | fast afresh ms | refit ms | refitted frames | Embree LOW ms | Embree / refit | SAH cost afresh | SAH cost refit |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "\n## Rebuilding the moving triangles ({threads} threads)\n\nEvery other frame of each museum's animation, in order; per frame the moving triangles (handed over as a commit hands them: moved, so their copy is not timed; Embree copies them into its own buffer, timed), each build run where a commit runs it (on the {threads}-thread pool from {} triangles up, below that on the calling thread: `BspBuilder::install_build`), are built afresh by the fast builder, refitted on the last frame's tree (`KdTree::refit_fast`: the old split planes with the new triangles, leaves that overflow split further, rebuilt afresh when the SAH cost exceeds {:.2}x the last full build's; what a commit does by default), and{} built by Embree at LOW quality; medians. SAH cost: expected steps and tests per ray (`KdTree::sah_cost`), mean over the frames. The BVH columns: the same triangles built afresh (`Bvh::build`) and refitted on the last frame's BVH (`Bvh::refit`, rebuilt past {:.2}x the last build's SAH cost); goal: BVH refit <= Embree LOW.\n\n| scene | triangles | fast afresh ms | refit ms | refitted frames | Embree LOW ms | Embree / refit | SAH cost afresh | SAH cost refit | BVH afresh ms | BVH refit ms | BVH refitted frames | Embree LOW / BVH refit | goal |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
         openrt_accel::PARALLEL_MIN,
         openrt_accel::DEFAULT_REFIT_COST_LIMIT,
         if cfg!(feature = "embree") {
             ""
         } else {
             " (with `--features embree`)"
-        }
+        },
+        openrt_accel::BVH_REFIT_COST_LIMIT
     );
     let mut rows = Vec::new();
     for name in names {
@@ -802,10 +871,28 @@ fn rebuilds(o: &BenchOptions, out: &mut String) -> Result<Vec<Rebuild>, String> 
             Some(e) => (format!("{e:.3}"), format!("{:.2}", e / r.refit_ms.max(1e-9))),
             None => ("-".into(), "-".into()),
         };
+        let (bvh_ratio, goal) = match r.embree_ms {
+            Some(e) => (
+                format!("{:.2}", e / r.bvh_refit_ms.max(1e-9)),
+                if r.bvh_refit_ms <= e { "met" } else { "**not met**" },
+            ),
+            None => ("-".into(), "not measured (build without Embree)"),
+        };
         let _ = writeln!(
             out,
-            "| {} | {} | {:.3} | {:.3} | {} / {} | {e} | {ratio} | {:.2} | {:.2} |",
-            r.scene, r.triangles, r.fresh_ms, r.refit_ms, r.refits, r.frames, r.fresh_cost, r.refit_cost
+            "| {} | {} | {:.3} | {:.3} | {} / {} | {e} | {ratio} | {:.2} | {:.2} | {:.3} | {:.3} | {} / {} | {bvh_ratio} | {goal} |",
+            r.scene,
+            r.triangles,
+            r.fresh_ms,
+            r.refit_ms,
+            r.refits,
+            r.frames,
+            r.fresh_cost,
+            r.refit_cost,
+            r.bvh_ms,
+            r.bvh_refit_ms,
+            r.bvh_refits,
+            r.frames
         );
         rows.push(r);
     }
@@ -967,7 +1054,9 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     let mut diffs = Vec::new();
     for s in &o.scenes {
         eprintln!("bench: {s}");
-        measure_scene(o, s, &mut rows, &mut diffs)?;
+        let mut reference = Vec::new();
+        measure_scene(o, s, Accel::Kd, &mut rows, &mut diffs, &mut reference)?;
+        measure_scene(o, s, Accel::Bvh, &mut rows, &mut diffs, &mut reference)?;
     }
     let mut md = String::new();
     let _ = writeln!(
@@ -1011,7 +1100,7 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     }
     let _ = writeln!(
         md,
-        "\n## Ray packets against single rays, and against Embree\n\nThe same frames through every backend of this build: `kd` (packets of {} lanes on this CPU), `kd-single`, and with `--features embree` Embree 3 one ray at a time (`embree`: rtcIntersect1/rtcOccluded1) and in packets of the same width (`embree-packet`: rtcIntersect4/8/16, rtcOccluded4/8/16), one Embree scene per object (HIGH quality, LOW for redefined objects) under a top-level scene committed every frame, its build counted in its render time. The kd images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`); Embree's differ only by its own hits. fps = 1000 / (commit + render).\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single | embree fps | embree-packet fps | kd / embree-packet | goal kd >= embree-packet |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---|",
+        "\n## Ray packets against single rays, and against Embree\n\nThe same frames through every backend of this build: `kd` (packets of {} lanes on this CPU), `kd-single`, and with `--features embree` Embree 3 one ray at a time (`embree`: rtcIntersect1/rtcOccluded1) and in packets of the same width (`embree-packet`: rtcIntersect4/8/16, rtcOccluded4/8/16), one Embree scene per object (HIGH quality, LOW for redefined objects) under a top-level scene committed every frame, its build counted in its render time. The kd images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`); Embree's differ only by its own hits. fps = 1000 / (commit + render). `bvh` and `bvh-single`: the kd backends' packets and single rays with 4-wide BVHs under the instances (`--accel bvh`), the same bytes.\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single | embree fps | embree-packet fps | kd / embree-packet | goal kd >= embree-packet | bvh fps | bvh-single fps | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---|",
         PacketWidth::detect().lanes()
     );
     let find = |r: &Row, b: &str| {
@@ -1023,14 +1112,21 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
         let f = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
         let ratio = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}x", r.fps() / v));
         let (single, em, emp) = (find(r, "kd-single"), find(r, "embree"), find(r, "embree-packet"));
-        let verdict = match emp {
-            Some(e) if r.fps() >= e => "met",
-            Some(_) => "**not met**",
-            None => "not measured (build without Embree)",
+        let goal = |fps: Option<f64>| match (fps, emp) {
+            (Some(f), Some(e)) if f >= e => "met",
+            (Some(_), Some(_)) => "**not met**",
+            (None, _) => "not measured",
+            (_, None) => "not measured (build without Embree)",
+        };
+        let verdict = goal(Some(r.fps()));
+        let (bvh, bvh_single) = (find(r, "bvh"), find(r, "bvh-single"));
+        let bvh_ratio = match (bvh, emp) {
+            (Some(b), Some(e)) => format!("{:.2}x", b / e),
+            _ => "-".into(),
         };
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {verdict} |",
+            "| {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {verdict} | {} | {} | {bvh_ratio} | {} |",
             r.scene,
             r.mode,
             r.threads,
@@ -1040,6 +1136,9 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
             f(em),
             f(emp),
             ratio(emp),
+            f(bvh),
+            f(bvh_single),
+            goal(bvh),
         );
     }
     let _ = writeln!(
@@ -1062,7 +1161,7 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
         let lanes = PacketWidth::detect().lanes();
         let _ = writeln!(
             md,
-            "\nRay queries alone, per scene (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit (the kd backends try each light's last occluder first, as in a frame; Embree's any-hit query names no occluder).\n\n| scene | rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal 3x | embree Mrays/s | embree-packet Mrays/s | kd / embree-packet |\n|---|---|---:|---:|---:|---:|---|---:|---:|---:|"
+            "\nRay queries alone, per scene (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit (the kd and BVH backends try each light's last occluder first, as in a frame; Embree's any-hit query names no occluder). `bvh-single` and `bvh`: the same queries with 4-wide BVHs under the instances (`--accel bvh`); goal: `bvh` >= `embree-packet`.\n\n| scene | rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal 3x | embree Mrays/s | embree-packet Mrays/s | kd / embree-packet | bvh-single Mrays/s | bvh Mrays/s | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---|"
         );
         for name in &o.scenes {
             eprintln!("bench: ray kinds on {name}");
@@ -1072,9 +1171,15 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
                 let (em, emp, vs) = k.embree.map_or(("-".into(), "-".into(), "-".into()), |(a, b)| {
                     (format!("{a:.2}"), format!("{b:.2}"), format!("{:.2}x", k.packet / b))
                 });
+                let (bs, bp) = k.bvh;
+                let (bvs, bgoal) = k
+                    .embree
+                    .map_or(("-".into(), "not measured (build without Embree)"), |(_, b)| {
+                        (format!("{:.2}x", bp / b), if bp >= b { "met" } else { "**not met**" })
+                    });
                 let _ = writeln!(
                     md,
-                    "| {name} | {} | {} | {:.2} | {:.2} | {ratio:.2}x | {verdict} | {em} | {emp} | {vs} |",
+                    "| {name} | {} | {} | {:.2} | {:.2} | {ratio:.2}x | {verdict} | {em} | {emp} | {vs} | {bs:.2} | {bp:.2} | {bvs} | {bgoal} |",
                     k.kind, k.rays, k.single, k.packet
                 );
                 kind_rows.push((name.clone(), k));
