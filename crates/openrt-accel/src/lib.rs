@@ -31,55 +31,37 @@
 //! ```
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
-mod aabb;
-mod binned_sah;
-mod box_quad;
 mod bvh;
 mod error;
-mod fast_build;
-mod frustum;
-mod hit;
-mod kdnode;
-mod kdtree;
-mod leaf_blocks;
-mod numeric;
+mod geom;
+mod kd;
+mod leaf;
 mod packet;
-mod packet_boxes;
-mod packet_interval;
-mod ray;
-mod refit;
-mod sah_build;
-mod toplevel;
-mod traverse;
-mod traverse_packet;
-mod tri_mailbox;
-mod triangle;
-mod triangle_packet;
-
 #[cfg(feature = "embree")]
-mod embree_peer;
-pub mod meshgen;
-pub mod oracle;
+mod peers;
+pub mod testing;
+mod toplevel;
 
-pub use aabb::Aabb;
-pub use box_quad::BoxQuad;
 pub use bvh::{
     BVH_MAX_DEPTH, BVH_MAX_LEAF, BVH_MAX_PRIMITIVES, BVH_REFIT_COST_LIMIT, BVH_WIDTH, Bvh, BvhNode, BvhSlot, BvhStats,
 };
-#[cfg(feature = "embree")]
-pub use embree_peer::{EmbreeMesh, EmbreeTwoLevel};
 pub use error::AccelError;
-pub use fast_build::{DEFAULT_REFIT_COST_LIMIT, FastParams, PARALLEL_MIN};
-pub use frustum::{FRUSTUM_MARGIN, Frustum, NO_FRUSTUM_ENV};
-pub use hit::Hit;
-pub use kdnode::{KdNode, MAX_DEPTH};
-pub use kdtree::{BuilderKind, KdTree, TreeStats};
-pub use packet::{LANES_ENV, MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
-pub use packet_boxes::{BOX_SLACK, PacketBoxes, ray_reaches};
-pub use packet_interval::PacketInterval;
-pub use ray::Ray;
-pub use sah_build::{DEFAULT_BINNED_ABOVE, SahParams, default_max_depth};
-pub use toplevel::{BspBuilder, InstanceBsp};
-pub use traverse::traverse;
-pub use traverse_packet::traverse_packet;
-pub use triangle::{TriHit, Triangle, intersect_triangle, is_valid_triangle};
+pub use geom::aabb::Aabb;
+pub use geom::box_quad::BoxQuad;
+pub use geom::hit::Hit;
+pub use geom::ray::Ray;
+pub use geom::triangle::{TriHit, Triangle, intersect_triangle, is_valid_triangle};
+pub use kd::fast_build::{DEFAULT_REFIT_COST_LIMIT, FastParams, PARALLEL_MIN};
+pub use kd::node::{KdNode, MAX_DEPTH};
+pub use kd::sah_params::{DEFAULT_BINNED_ABOVE, SahParams, default_max_depth};
+pub use kd::traverse::traverse;
+pub use kd::tree::{BuilderKind, KdTree, TreeStats};
+pub use packet::boxes::{BOX_SLACK, PacketBoxes, ray_reaches};
+pub use packet::frustum::{FRUSTUM_MARGIN, Frustum, NO_FRUSTUM_ENV};
+pub use packet::interval::PacketInterval;
+pub use packet::traverse::traverse_packet;
+pub use packet::width::{LANES_ENV, MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
+#[cfg(feature = "embree")]
+pub use peers::embree::{EmbreeMesh, EmbreeTwoLevel};
+pub use testing::{meshgen, oracle};
+pub use toplevel::bsp::{BspBuilder, InstanceBsp};

@@ -9,13 +9,13 @@
 //! four or none can be split. Deep down (past [`MEDIAN_DEPTH`]) or where
 //! binning cannot separate the centres, the split is the median, so the
 //! depth stays logarithmic for any input. Subtrees of at least
-//! [`crate::PARALLEL_MIN`] triangles are built as tasks of the pool the build
+//! [`crate::kd::fast_build::PARALLEL_MIN`] triangles are built as tasks of the pool the build
 //! runs in.
 
 use glam::Vec3;
 
 use super::node::{BVH_WIDTH, BvhNode, LEAF_BIT};
-use crate::Aabb;
+use crate::geom::aabb::Aabb;
 
 /// Bins per axis.
 pub(crate) const BINS: usize = 16;
@@ -253,7 +253,7 @@ pub(crate) fn build_into(
     let big = parallel
         && kids[..n]
             .iter()
-            .filter(|k| !k.leaf && k.end - k.start >= crate::PARALLEL_MIN)
+            .filter(|k| !k.leaf && k.end - k.start >= crate::kd::fast_build::PARALLEL_MIN)
             .count()
             > 1;
     if big {

@@ -26,13 +26,18 @@ use std::time::Instant;
 pub use build::BVH_MAX_LEAF;
 pub use node::{BVH_MAX_DEPTH, BVH_WIDTH, BvhNode, BvhSlot};
 
-use crate::frustum::Frustum;
-use crate::kdnode::KdNode;
-use crate::leaf_blocks::{BlockRay, LANES, LeafLists, NO_TIE, TriBlock, leaf_any, leaf_closest, leaf_packet};
-use crate::packet::lanes_of;
-use crate::triangle::is_valid_triangle;
-use crate::triangle_packet::PacketBlockRay;
-use crate::{Aabb, AccelError, Hit, PacketBoxes, Ray, Triangle};
+use crate::error::AccelError;
+use crate::geom::aabb::Aabb;
+use crate::geom::hit::Hit;
+use crate::geom::ray::Ray;
+use crate::geom::triangle::Triangle;
+use crate::geom::triangle::is_valid_triangle;
+use crate::kd::node::KdNode;
+use crate::leaf::blocks::{BlockRay, LANES, LeafLists, NO_TIE, TriBlock, leaf_any, leaf_closest, leaf_packet};
+use crate::packet::boxes::PacketBoxes;
+use crate::packet::frustum::Frustum;
+use crate::packet::triangle::PacketBlockRay;
+use crate::packet::width::lanes_of;
 use build::{Ref, bounds_of, build_into};
 use node::{EMPTY_SLOT, LEAF_BIT};
 

@@ -2,7 +2,7 @@
 
 use wide::f32x4;
 
-use crate::Aabb;
+use crate::geom::aabb::Aabb;
 
 /// Children per node: one SSE register per box coordinate.
 pub const BVH_WIDTH: usize = 4;

@@ -19,10 +19,11 @@ use wide::f32x4;
 
 use super::node::{BVH_WIDTH, BvhNode, EMPTY_SLOT, LEAF_BIT, STACK};
 use super::walk::{FAR_WIDEN, NEAR_SLACK};
-use crate::box_quad::BoxQuad;
-use crate::frustum::Frustum;
-use crate::packet_interval::PacketInterval;
-use crate::{PacketBoxes, Ray};
+use crate::geom::box_quad::BoxQuad;
+use crate::geom::ray::Ray;
+use crate::packet::boxes::PacketBoxes;
+use crate::packet::frustum::Frustum;
+use crate::packet::interval::PacketInterval;
 
 /// Lane groups of four in the widest packet (16 lanes).
 const MAX_GROUPS: usize = 4;
@@ -38,7 +39,7 @@ pub(crate) struct LaneRays {
 /// Lanes with a zero direction component (either sign): their slab tests
 /// need the origin-only rule of the single-ray test, so they walk alone.
 pub(crate) fn parallel_lanes<const N: usize>(rays: &[Ray; N], lanes: u32) -> u32 {
-    crate::lanes_of(lanes).fold(0, |m, l| {
+    crate::packet::width::lanes_of(lanes).fold(0, |m, l| {
         m | (u32::from(rays[l].dir.cmpeq(glam::Vec3::ZERO).any()) << l)
     })
 }
@@ -177,7 +178,7 @@ where
                 }
             } else {
                 let node = &nodes[cur.child as usize];
-                let far = crate::lanes_of(active).fold(f32::NEG_INFINITY, |m, l| m.max(closest[l]));
+                let far = crate::packet::width::lanes_of(active).fold(f32::NEG_INFINITY, |m, l| m.max(closest[l]));
                 let occupied = (0..BVH_WIDTH).fold(0u32, |m, i| m | (u32::from(node.child[i] != EMPTY_SLOT) << i));
                 let mut cand = occupied & !cull.rejects(node, far);
                 let bounds: [f32x4; MAX_GROUPS] = std::array::from_fn(|g| {

@@ -14,8 +14,10 @@ use rayon::prelude::*;
 
 use super::node::{BVH_WIDTH, BvhNode, EMPTY_SLOT, LEAF_BIT};
 use super::{Bvh, LANES, TriBlock};
-use crate::triangle::is_valid_triangle;
-use crate::{Aabb, AccelError, Triangle};
+use crate::error::AccelError;
+use crate::geom::aabb::Aabb;
+use crate::geom::triangle::Triangle;
+use crate::geom::triangle::is_valid_triangle;
 
 /// Nodes or blocks per parallel task.
 const CHUNK: usize = 1024;

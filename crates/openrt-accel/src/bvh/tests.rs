@@ -6,8 +6,9 @@ use rand::{Rng, SeedableRng};
 
 use super::walk::{NodeRay, node_test_scalar};
 use super::*;
-use crate::oracle::BruteForce;
-use crate::{KdTree, meshgen};
+use crate::kd::tree::KdTree;
+use crate::testing::meshgen;
+use crate::testing::oracle::BruteForce;
 
 /// Every answer of `bvh` equals the kd-tree's over the same triangles, bit
 /// for bit, and passes the oracle.
@@ -98,7 +99,8 @@ fn coplanar_overlaps_give_the_same_triangle_in_both_structures() {
     for r in &rays {
         if let Some(h) = bvh.intersect(r) {
             let other = tris.iter().enumerate().any(|(p, t)| {
-                p as u32 != h.prim && crate::intersect_triangle(r, t, f32::INFINITY).is_some_and(|x| x.0 == h.t)
+                p as u32 != h.prim
+                    && crate::geom::triangle::intersect_triangle(r, t, f32::INFINITY).is_some_and(|x| x.0 == h.t)
             });
             ties += usize::from(other);
         }
@@ -325,7 +327,7 @@ fn packets_as_single_rays<const N: usize>(bvh: &Bvh, rays: &[Ray], seed: u64) ->
     let mut hits = 0;
     for chunk in rays.chunks(N) {
         let pk: [Ray; N] = std::array::from_fn(|l| chunk[l % chunk.len()]);
-        let mut lanes = crate::lanes_mask(chunk.len());
+        let mut lanes = crate::packet::width::lanes_mask(chunk.len());
         if rng.random_range(0..4) == 0 {
             lanes &= rng.random::<u32>();
         }

@@ -14,8 +14,8 @@
 use wide::f32x4;
 
 use super::node::{BVH_WIDTH, BvhNode, EMPTY_SLOT, LEAF_BIT, STACK};
-use crate::Ray;
-use crate::numeric::gamma;
+use crate::geom::numeric::gamma;
+use crate::geom::ray::Ray;
 
 /// Relative widening of a box's far distance (Ize 2013).
 pub(crate) const FAR_WIDEN: f32 = 1.0 + 2.0 * gamma(3);

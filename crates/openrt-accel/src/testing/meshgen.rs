@@ -4,7 +4,9 @@ use glam::Vec3;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
-use crate::{Aabb, Ray, Triangle};
+use crate::geom::aabb::Aabb;
+use crate::geom::ray::Ray;
+use crate::geom::triangle::Triangle;
 
 /// A UV sphere of about `n` triangles, radially displaced by a smooth seeded
 /// pattern of amplitude `bump` (a closed mesh, consistently wound, with shared

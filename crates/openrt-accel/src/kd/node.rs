@@ -17,8 +17,8 @@ const BELOW_EMPTY: u32 = 4;
 
 /// The error of a tree whose node count outgrows [`MAX_NODES`] or whose
 /// leaf references outgrow their 32-bit offsets or [`MAX_FIELD`].
-pub(crate) const fn too_many_nodes() -> crate::AccelError {
-    crate::AccelError::TooManyNodes {
+pub(crate) const fn too_many_nodes() -> crate::error::AccelError {
+    crate::error::AccelError::TooManyNodes {
         limit: MAX_NODES as usize,
     }
 }
@@ -53,7 +53,7 @@ pub(crate) fn append_shifted(
     prims: &mut Vec<u32>,
     sub_nodes: &[KdNode],
     sub_prims: &[u32],
-) -> Result<(), crate::AccelError> {
+) -> Result<(), crate::error::AccelError> {
     let (at, prim_at) = (nodes.len(), prims.len());
     if prim_at + sub_prims.len() > u32::MAX as usize || at + sub_nodes.len() > MAX_NODES as usize {
         return Err(too_many_nodes());
@@ -72,7 +72,7 @@ pub(crate) fn shift_into(
     src: &[KdNode],
     node_offset: u32,
     prim_offset: u32,
-) -> Result<(), crate::AccelError> {
+) -> Result<(), crate::error::AccelError> {
     debug_assert_eq!(dst.len(), src.len());
     for (d, s) in dst.iter_mut().zip(src) {
         *d = s.shifted(node_offset, prim_offset).ok_or(too_many_nodes())?;
@@ -88,7 +88,7 @@ pub(crate) fn stitch(
     (axis, split): (usize, f32),
     left: (&[KdNode], &[u32]),
     right: (&[KdNode], &[u32]),
-) -> Result<(), crate::AccelError> {
+) -> Result<(), crate::error::AccelError> {
     let index = nodes.len();
     nodes.push(KdNode::interior(axis, split));
     append_shifted(nodes, prims, left.0, left.1)?;
@@ -215,9 +215,9 @@ impl KdNode {
 /// unpredictable leaf test for nothing; about half the leaves of an SAH
 /// tree are empty (its empty-space cuts). Dropping them took a random ray
 /// through a 10k-triangle mesh from 457 to 417 ns (docs/PERFORMANCE.md).
-pub(crate) fn elide_empty_leaves(nodes: &[KdNode]) -> Result<Vec<KdNode>, crate::AccelError> {
+pub(crate) fn elide_empty_leaves(nodes: &[KdNode]) -> Result<Vec<KdNode>, crate::error::AccelError> {
     /// Appends the subtree at `i` without its empty leaves; `false` when it is empty.
-    fn emit(nodes: &[KdNode], i: usize, out: &mut Vec<KdNode>) -> Result<bool, crate::AccelError> {
+    fn emit(nodes: &[KdNode], i: usize, out: &mut Vec<KdNode>) -> Result<bool, crate::error::AccelError> {
         let n = nodes[i];
         if n.is_leaf() {
             if n.prim_count() == 0 {

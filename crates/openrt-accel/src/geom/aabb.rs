@@ -2,8 +2,8 @@
 
 use glam::{Vec3, Vec3A};
 
-use crate::Ray;
-use crate::numeric::{gamma, step_ulps};
+use crate::geom::numeric::{gamma, step_ulps};
+use crate::geom::ray::Ray;
 
 /// An axis-aligned box `[min, max]`; the empty box has `min > max`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -18,57 +18,16 @@
 
 use wide::f32x4;
 
-use crate::frustum::Frustum;
-use crate::kdnode::KdNode;
-use crate::tri_mailbox::TriMailbox;
-use crate::triangle::{TriHit, intersect_triangle};
-use crate::triangle_packet::{LaneHits, PacketBlockRay};
-use crate::{AccelError, Ray, Triangle};
+use crate::error::AccelError;
+use crate::geom::ray::Ray;
+use crate::geom::triangle::Triangle;
+use crate::geom::triangle::{TriHit, intersect_triangle};
+use crate::kd::node::KdNode;
+use crate::leaf::mailbox::TriMailbox;
+use crate::packet::frustum::Frustum;
+use crate::packet::triangle::{LaneHits, PacketBlockRay};
 
-/// Triangles per block (one SSE register per coordinate).
-pub(crate) const LANES: usize = 4;
-
-/// `LANES` triangles, coordinate by coordinate: `v[vertex][axis]` holds that
-/// coordinate of each lane's triangle.
-///
-/// PERF: 144 bytes, read front to back; a leaf's blocks are contiguous.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct TriBlock {
-    v: [[f32x4; 3]; 3],
-}
-
-impl TriBlock {
-    /// The block holding the triangles `ids` of `tris`; a short list is
-    /// padded by repeating its last triangle (a repeated lane finds the same
-    /// hit, which the closest-hit bound then rejects).
-    pub(crate) fn pack(ids: &[u32], tris: &[Triangle]) -> Self {
-        debug_assert!(!ids.is_empty() && ids.len() <= LANES);
-        let last = ids.len() - 1;
-        let lanes: [&Triangle; LANES] = std::array::from_fn(|i| &tris[ids[i.min(last)] as usize]);
-        // PERF: plain loops over the nine coordinates (nested `from_fn`
-        // closures were not inlined: 4% of a 16k-triangle refit).
-        let mut v = [[f32x4::ZERO; 3]; 3];
-        for (vert, row) in v.iter_mut().enumerate() {
-            for (axis, c) in row.iter_mut().enumerate() {
-                *c = f32x4::from(lanes.map(|t| t[vert][axis]));
-            }
-        }
-        Self { v }
-    }
-
-    /// Coordinate `axis` of vertex `vert` of the four triangles.
-    #[inline]
-    pub(crate) fn coord(&self, vert: usize, axis: usize) -> f32x4 {
-        self.v[vert][axis]
-    }
-
-    /// Lane `i`'s triangle as stored.
-    #[inline]
-    pub(crate) fn triangle(&self, i: usize) -> Triangle {
-        let c = |vert: usize, axis: usize| self.v[vert][axis].to_array()[i];
-        std::array::from_fn(|vert| glam::Vec3::new(c(vert, 0), c(vert, 1), c(vert, 2)))
-    }
-}
+pub(crate) use crate::geom::tri_block::{LANES, TriBlock};
 
 /// Re-lays out the leaves of a built tree so that each leaf's index range
 /// starts at a multiple of [`LANES`] (padding entries repeat the leaf's last
@@ -325,7 +284,7 @@ pub(crate) fn leaf_packet<const N: usize>(
     // The kernel's bounds: each lane's `tie_bound` in a closest-hit walk.
     let mut bound = *closest;
     if let Some(ties) = ties.as_deref() {
-        for l in crate::packet::lanes_of(lanes) {
+        for l in crate::packet::width::lanes_of(lanes) {
             bound[l] = tie_bound(closest[l], ties[l]);
         }
     }
@@ -353,7 +312,7 @@ pub(crate) fn leaf_packet<const N: usize>(
             }
             if let Some(ties) = ties.as_deref_mut() {
                 // Only hits that beat the lane's best go on (the tie rule).
-                for l in crate::packet::lanes_of(h.hit) {
+                for l in crate::packet::width::lanes_of(h.hit) {
                     if beats(h.lane(l).0, prim, closest[l], ties[l]) {
                         ties[l] = prim;
                     } else {
@@ -367,7 +326,7 @@ pub(crate) fn leaf_packet<const N: usize>(
                     return lanes;
                 }
                 if ties.is_some() {
-                    for l in crate::packet::lanes_of(h.hit) {
+                    for l in crate::packet::width::lanes_of(h.hit) {
                         bound[l] = tie_bound(closest[l], 0);
                     }
                 }
@@ -436,7 +395,7 @@ impl LeafLists<'_> {
             return 0;
         }
         let Some(pbr) = PacketBlockRay::new(rays, lanes) else {
-            return crate::packet::lanes_of(lanes)
+            return crate::packet::width::lanes_of(lanes)
                 .fold(0, |m, l| m | (u32::from(self.blocks_ray(&rays[l], leaf, margin)) << l));
         };
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
@@ -454,7 +413,7 @@ impl LeafLists<'_> {
             None,
             None,
             |h, _, _| {
-                for l in crate::packet::lanes_of(h.hit) {
+                for l in crate::packet::width::lanes_of(h.hit) {
                     if well_inside(&rays[l], h.lane(l), margin) {
                         got |= 1 << l;
                     }
@@ -472,7 +431,9 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::{Aabb, KdTree, meshgen};
+    use crate::geom::aabb::Aabb;
+    use crate::kd::tree::KdTree;
+    use crate::testing::meshgen;
 
     /// The scalar loop the blocks replace.
     fn scalar_closest(ray: &Ray, list: &[u32], tris: &[Triangle], mut t_max: f32) -> Option<(u32, TriHit)> {

@@ -9,7 +9,9 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::{Hit, Ray, Triangle};
+use crate::geom::hit::Hit;
+use crate::geom::ray::Ray;
+use crate::geom::triangle::Triangle;
 
 /// Relative tolerance on `t` when comparing against the oracle.
 pub const T_REL_TOL: f64 = 1e-4;

@@ -13,7 +13,7 @@
 //!   as the full-SAH builder. They count both sides of each candidate with
 //!   branch-free fixed-width loops, which is why exact nodes hold at most
 //!   64 references (a larger `binned_above` acts as 64; `None` selects the
-//!   sorted-event builder of [`crate::sah_build`] instead).
+//!   sorted-event builder of [`crate::kd::sah_build`] instead).
 //! - Defaults (`binned_above = 16`, `intersection_cost = 0.1`) were chosen
 //!   with `examples/sah_sweep.rs` and `examples/ab_ki.rs`: on a 100k-triangle
 //!   mesh they build well above 1 Mtris/s on one core and trace as fast as
@@ -22,14 +22,16 @@
 //!   ("perfect splits"): the triangle is split at the plane and each part's
 //!   bounds intersected with the reference's box ([`split_bounds`]). The
 //!   same SAH costs, empty bonus, depth limit and leaf rule as
-//!   [`crate::sah_build`] apply.
+//!   [`crate::kd::sah_build`] apply.
 //!
 //! PERF: references live in one stack-disciplined arena (a node's children
 //! are written past the node's own range; no allocation per node).
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, too_many_nodes};
-use crate::sah_build::{BuiltTree, SahParams, default_max_depth};
-use crate::{Aabb, AccelError, Triangle};
+use crate::error::AccelError;
+use crate::geom::aabb::Aabb;
+use crate::geom::triangle::Triangle;
+use crate::kd::node::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, too_many_nodes};
+use crate::kd::sah_params::{BuiltTree, SahParams, default_max_depth};
 
 /// The most references a node may have for the exact counts
 /// ([`Builder::small_plane`]); larger `binned_above` values act as this.
@@ -440,7 +442,9 @@ fn split_bounds(tri: &Triangle, axis: usize, pos: f32) -> (Aabb, Aabb) {
 
 #[cfg(test)]
 mod tests {
-    use crate::{KdTree, SahParams, meshgen};
+    use crate::kd::sah_params::SahParams;
+    use crate::kd::tree::KdTree;
+    use crate::testing::meshgen;
 
     /// Binned planes may cost a little tree quality, never much: the SAH
     /// cost of the default tree stays within 10% of the exact builder's

@@ -8,7 +8,8 @@ use embree3::{
     Ray8, Ray16, RayHit, RayHit4, RayHit8, RayHit16, Scene, SceneFlags, ValidMask, ValidMaskN,
 };
 
-use crate::{Ray, Triangle};
+use crate::geom::ray::Ray;
+use crate::geom::triangle::Triangle;
 
 /// A triangle mesh in an Embree scene.
 pub struct EmbreeMesh {
@@ -42,7 +43,7 @@ impl EmbreeMesh {
 
     /// Closest hit with Embree's barycentrics.
     #[must_use]
-    pub fn intersect_hit(&self, ray: &Ray) -> Option<crate::Hit> {
+    pub fn intersect_hit(&self, ray: &Ray) -> Option<crate::geom::hit::Hit> {
         closest1(&self.scene, ray).map(|(_, h)| h)
     }
 
@@ -181,7 +182,7 @@ impl EmbreeTwoLevel {
 
 /// The closest hit of one ray (rtcIntersect1) with the Embree id of the
 /// instance hit (`INVALID_ID` in a scene without instances).
-fn closest1(scene: &Scene<'static>, ray: &Ray) -> Option<(u32, crate::Hit)> {
+fn closest1(scene: &Scene<'static>, ray: &Ray) -> Option<(u32, crate::geom::hit::Hit)> {
     let mut ctx = IntersectContext::incoherent();
     let mut rh = RayHit::from(embree3::Ray::segment(
         ray.origin.to_array(),
@@ -192,7 +193,7 @@ fn closest1(scene: &Scene<'static>, ray: &Ray) -> Option<(u32, crate::Hit)> {
     scene.intersect(&mut ctx, &mut rh);
     rh.hit.is_valid().then_some((
         rh.hit.instID[0],
-        crate::Hit {
+        crate::geom::hit::Hit {
             t: rh.ray.tfar,
             prim: rh.hit.primID,
             b1: rh.hit.u,
@@ -251,7 +252,7 @@ macro_rules! fill_packet {
 /// The packet queries of one width (rtcIntersect4/8/16, rtcOccluded4/8/16).
 macro_rules! packet_queries {
     ($closest:ident, $any:ident, $n:literal, $ray:ty, $hit:ty, $rayhit:ident, $isect:ident, $occl:ident) => {
-        fn $closest(&self, rays: &[Ray], lanes: u32, out: &mut [Option<(u32, crate::Hit)>]) {
+        fn $closest(&self, rays: &[Ray], lanes: u32, out: &mut [Option<(u32, crate::geom::hit::Hit)>]) {
             let (ray, valid, bits) = fill_packet!($ray, $n, rays, lanes);
             let mut rh = $rayhit {
                 ray,
@@ -259,11 +260,11 @@ macro_rules! packet_queries {
             };
             let mut ctx = IntersectContext::coherent();
             self.top.$isect(&mut ctx, &mut rh, &valid.0);
-            for l in crate::lanes_of(bits) {
+            for l in crate::packet::width::lanes_of(bits) {
                 if rh.hit.geomID[l] != INVALID_ID {
                     out[l] = Some((
                         self.index_of(rh.hit.instID[0][l]),
-                        crate::Hit {
+                        crate::geom::hit::Hit {
                             t: rh.ray.tfar[l],
                             prim: rh.hit.primID[l],
                             b1: rh.hit.u[l],
@@ -282,7 +283,7 @@ macro_rules! packet_queries {
             let mut ctx = IntersectContext::incoherent();
             self.top.$occl(&mut ctx, &mut ray, &valid.0);
             let mut hit = 0;
-            for l in crate::lanes_of(bits) {
+            for l in crate::packet::width::lanes_of(bits) {
                 if ray.tfar[l] == f32::NEG_INFINITY {
                     hit |= 1 << l;
                 }
@@ -310,7 +311,7 @@ impl EmbreeTwoLevel {
 
     /// Closest hit with the index of the instance hit (rtcIntersect1).
     #[must_use]
-    pub fn intersect_instance(&self, ray: &Ray) -> Option<(u32, crate::Hit)> {
+    pub fn intersect_instance(&self, ray: &Ray) -> Option<(u32, crate::geom::hit::Hit)> {
         if !ray.is_valid() || ray.t_min > ray.t_max {
             return None;
         }
@@ -336,14 +337,18 @@ impl EmbreeTwoLevel {
     /// kernels of the same width (rtcIntersect4/8/16; other widths go ray by
     /// ray), with the index of the instance hit.
     #[must_use]
-    pub fn intersect_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> [Option<(u32, crate::Hit)>; N] {
+    pub fn intersect_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        lanes: u32,
+    ) -> [Option<(u32, crate::geom::hit::Hit)>; N] {
         let mut out = [None; N];
         match N {
             4 => self.closest4(rays, lanes, &mut out),
             8 => self.closest8(rays, lanes, &mut out),
             16 => self.closest16(rays, lanes, &mut out),
             _ => {
-                for l in crate::lanes_of(lanes) {
+                for l in crate::packet::width::lanes_of(lanes) {
                     out[l] = self.intersect_instance(&rays[l]);
                 }
             }
@@ -358,7 +363,7 @@ impl EmbreeTwoLevel {
             4 => self.any4(rays, lanes),
             8 => self.any8(rays, lanes),
             16 => self.any16(rays, lanes),
-            _ => crate::lanes_of(lanes)
+            _ => crate::packet::width::lanes_of(lanes)
                 .filter(|&l| self.occluded(&rays[l]))
                 .fold(0, |m, l| m | (1 << l)),
         }

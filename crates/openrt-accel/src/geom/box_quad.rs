@@ -3,7 +3,7 @@
 
 use wide::f32x4;
 
-use crate::Aabb;
+use crate::geom::aabb::Aabb;
 
 /// Four boxes in structure-of-arrays order: `min[axis]` and `max[axis]`
 /// hold one box per lane. A leaf's last quad repeats its last box in the

@@ -11,10 +11,12 @@
 //!   `min_leaf * leaf_growth^depth` primitives;
 //! - depth limited to `depth_factor` times the SAH builder's limit.
 
-use crate::SahParams;
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, stitch, too_many_nodes};
-use crate::sah_build::{BuiltTree, default_max_depth};
-use crate::{Aabb, AccelError, Triangle, is_valid_triangle};
+use crate::error::AccelError;
+use crate::geom::aabb::Aabb;
+use crate::geom::triangle::{Triangle, is_valid_triangle};
+use crate::kd::node::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, stitch, too_many_nodes};
+use crate::kd::sah_params::SahParams;
+use crate::kd::sah_params::{BuiltTree, default_max_depth};
 
 /// Parameters of the fast builder.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -538,7 +540,7 @@ mod tests {
     fn clipped_coordinates_are_the_ones_clipping_at_every_level_gave() {
         // A fast tree's leaves, rebuilt from the boxes clipped level by
         // level (the plain partition above), hold the same ids.
-        let tris = crate::meshgen::bumpy_sphere(3_000, 3, 0.4);
+        let tris = crate::testing::meshgen::bumpy_sphere(3_000, 3, 0.4);
         let (items, boxes, bounds) = items_of(&tris).unwrap();
         let fast = Fast::new(&FastParams::default(), &boxes, items.len());
         let mut clipped: Vec<(u32, Aabb)> = items

@@ -1,9 +1,9 @@
 //! Iterative front-to-back kd-tree traversal, shared by object trees and the
 //! top-level instance tree.
 
-use crate::Ray;
-use crate::kdnode::{KdNode, MAX_DEPTH};
-use crate::numeric::gamma;
+use crate::geom::numeric::gamma;
+use crate::geom::ray::Ray;
+use crate::kd::node::{KdNode, MAX_DEPTH};
 
 /// Relative margin by which a split distance is widened on both sides.
 ///
@@ -232,7 +232,7 @@ mod tests {
             let mag = 10f32.powi(rng.random_range(-12..=12)) * rng.random_range(1.0..2.0f32);
             let b = if rng.random() { mag } else { -mag };
             // A split distance a few ulps to a few margins away from `b`.
-            let s = crate::numeric::step_ulps(b, rng.random_range(-160..=160));
+            let s = crate::geom::numeric::step_ulps(b, rng.random_range(-160..=160));
             let margin = |t: f32| t.abs() * ENLARGE;
             if s > widen_up(b) {
                 assert!(s - margin(s) > b + margin(b), "{s} beyond widen_up({b})");

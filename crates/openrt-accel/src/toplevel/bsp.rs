@@ -10,7 +10,7 @@
 //! hold fewer instances than the parent, and at most half of the instances
 //! straddle (beyond that, duplication costs more than the split saves).
 //!
-//! Traversal uses the same 8-byte nodes and [`crate::traverse`] as object trees.
+//! Traversal uses the same 8-byte nodes and [`crate::kd::traverse`] as object trees.
 //!
 //! PERF: per node, one SIMD pass finds the candidates on all three axes at
 //! once and rules out the axes on which all instances overlap (most nodes
@@ -20,9 +20,13 @@
 //! data-dependent branches, into one stack-disciplined arena (no allocation
 //! per node); the upper levels are built on several threads and stitched.
 
-use crate::kdnode::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, shift_into, too_many_nodes};
-use crate::sah_build::default_max_depth;
-use crate::{Aabb, AccelError, BoxQuad, BuilderKind, PARALLEL_MIN};
+use crate::error::AccelError;
+use crate::geom::aabb::Aabb;
+use crate::geom::box_quad::BoxQuad;
+use crate::kd::fast_build::PARALLEL_MIN;
+use crate::kd::node::{KdNode, MAX_DEPTH, MAX_FIELD, MAX_NODES, shift_into, too_many_nodes};
+use crate::kd::sah_params::default_max_depth;
+use crate::kd::tree::BuilderKind;
 
 /// A kd-tree over instance world boxes.
 #[derive(Clone, Debug, Default)]
@@ -909,11 +913,11 @@ mod tests {
         assert!(!on_pool(BuilderKind::Sah, 10 * PARALLEL_MIN));
         // Below the threshold a fast build joins nothing, so it runs the same
         // outside any pool.
-        let tris = crate::meshgen::bumpy_sphere(PARALLEL_MIN / 2, 4, 0.3);
+        let tris = crate::testing::meshgen::bumpy_sphere(PARALLEL_MIN / 2, 4, 0.3);
         let inline = pool.install_build(BuilderKind::Fast, tris.len(), || {
-            crate::KdTree::build_fast(tris.clone())
+            crate::kd::tree::KdTree::build_fast(tris.clone())
         });
-        let pooled = pool.install(|| crate::KdTree::build_fast(tris.clone()));
+        let pooled = pool.install(|| crate::kd::tree::KdTree::build_fast(tris.clone()));
         assert_eq!(inline.unwrap().nodes(), pooled.unwrap().nodes());
     }
 

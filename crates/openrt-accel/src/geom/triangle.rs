@@ -23,8 +23,8 @@
 
 use glam::Vec3;
 
-use crate::Ray;
-use crate::numeric::gamma;
+use crate::geom::numeric::gamma;
+use crate::geom::ray::Ray;
 
 /// A triangle stored as its three vertices.
 ///

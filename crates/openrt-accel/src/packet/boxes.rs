@@ -20,8 +20,9 @@
 
 use wide::f32x4;
 
-use crate::numeric::gamma;
-use crate::{Aabb, Ray};
+use crate::geom::aabb::Aabb;
+use crate::geom::numeric::gamma;
+use crate::geom::ray::Ray;
 
 /// Relative widening of the boxes tested by [`PacketBoxes::reaching`].
 pub const BOX_SLACK: f32 = 1e-4;
@@ -74,7 +75,7 @@ impl<const N: usize> PacketBoxes<N> {
             scale = keep.bitselect(scale.fast_max(m), scale);
         }
         let mut scale = scale.to_array().into_iter().fold(0.0f32, f32::max);
-        for l in crate::lanes_of(lanes).filter(|&l| l >= N - N % 4) {
+        for l in crate::packet::width::lanes_of(lanes).filter(|&l| l >= N - N % 4) {
             let r = &rays[l];
             if r.inv_dir.is_finite() && r.origin.is_finite() && r.inv_dir.cmpne(glam::Vec3::ZERO).all() {
                 testable |= 1 << l;
@@ -293,7 +294,7 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     use super::*;
-    use crate::meshgen;
+    use crate::testing::meshgen;
 
     /// A box of random centre and half-sizes inside the test world.
     fn random_box(rng: &mut SmallRng) -> Aabb {
@@ -335,7 +336,7 @@ mod tests {
             });
             let lanes = rng.random::<u32>() & (u32::MAX >> (32 - N));
             let (mut testable, mut scale) = (0u32, 0.0f32);
-            for l in crate::lanes_of(lanes) {
+            for l in crate::packet::width::lanes_of(lanes) {
                 let r = &rays[l];
                 if r.inv_dir.is_finite() && r.origin.is_finite() && r.inv_dir.cmpne(Vec3::ZERO).all() {
                     testable |= 1 << l;

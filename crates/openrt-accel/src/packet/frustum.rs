@@ -19,10 +19,11 @@
 
 use wide::f32x4;
 
-use crate::BoxQuad;
-use crate::leaf_blocks::TriBlock;
-use crate::packet::by_axis;
-use crate::{Ray, lanes_of};
+use crate::geom::box_quad::BoxQuad;
+use crate::geom::ray::Ray;
+use crate::geom::tri_block::TriBlock;
+use crate::packet::width::by_axis;
+use crate::packet::width::lanes_of;
 
 /// Relative margin by which a triangle's projection must clear the lanes'
 /// rectangle before the whole packet skips it.
@@ -42,7 +43,7 @@ fn off() -> bool {
 
 /// The rectangle of a packet's rays seen from their shared origin. Made
 /// for packets of whole SSE registers (`N` a multiple of four, as every
-/// [`crate::PacketWidth`]).
+/// [`crate::packet::width::PacketWidth`]).
 pub struct Frustum {
     /// The origin.
     origin: glam::Vec3,
@@ -258,7 +259,7 @@ impl Frustum {
     /// rays to object space), lies wholly behind the apex, or its part in
     /// front of the apex lies beyond one side of the rectangle.
     #[must_use]
-    pub fn rejects_box(&self, bounds: &crate::Aabb) -> bool {
+    pub fn rejects_box(&self, bounds: &crate::geom::aabb::Aabb) -> bool {
         let [k, a, b] = self.axes;
         let s = self.sign.to_array()[0];
         let o = self.origin;
@@ -442,8 +443,10 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     use super::*;
-    use crate::triangle::intersect_triangle;
-    use crate::{Aabb, Triangle, meshgen};
+    use crate::geom::aabb::Aabb;
+    use crate::geom::triangle::Triangle;
+    use crate::geom::triangle::intersect_triangle;
+    use crate::testing::meshgen;
 
     /// The rectangle and the refusals of the four-lane pass are a lane
     /// loop's, for camera packets, packets with a lane pointing back, along

@@ -1,6 +1,6 @@
 //! The watertight ray/triangle test across a packet's lanes: one triangle
 //! against `N` rays per pass, the lane-parallel twin of
-//! [`crate::intersect_triangle`].
+//! [`crate::geom::triangle::intersect_triangle`].
 //!
 //! Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1),
 //! 2013, for the test; Wald, Benthin, Wagner & Slusallek 2001 for testing a
@@ -12,7 +12,7 @@
 //! NOTE: each lane repeats the scalar kernel's operations one for one (same
 //! subtractions and products in the same order, no fused multiply-add, the
 //! same comparisons written so that NaN goes the same way), so a lane's hit,
-//! `t` and barycentrics are bit-identical to [`crate::intersect_triangle`]'s.
+//! `t` and barycentrics are bit-identical to [`crate::geom::triangle::intersect_triangle`]'s.
 //! The one case it does not decide is an edge function that is exactly zero
 //! (a ray through an edge or a vertex): the scalar kernel recomputes those in
 //! f64 and applies its tie rule, so such lanes are handed back to it
@@ -21,10 +21,12 @@
 
 use wide::f32x4;
 
-use crate::leaf_blocks::TriBlock;
-use crate::numeric::gamma;
-use crate::triangle::intersect_triangle;
-use crate::{MAX_LANES, Ray, Triangle};
+use crate::geom::numeric::gamma;
+use crate::geom::ray::Ray;
+use crate::geom::tri_block::TriBlock;
+use crate::geom::triangle::Triangle;
+use crate::geom::triangle::intersect_triangle;
+use crate::packet::width::MAX_LANES;
 
 /// Lanes per SIMD chunk (one SSE register of `f32`).
 const CHUNK: usize = 4;
@@ -81,7 +83,7 @@ impl LaneHits {
     /// rule), adding their hits to `hit`; `edge` is then empty.
     #[inline]
     pub(crate) fn settle_edges<const N: usize>(&mut self, rays: &[Ray; N], tri: &Triangle, t_max: &[f32; N]) {
-        for l in crate::lanes_of(self.edge) {
+        for l in crate::packet::width::lanes_of(self.edge) {
             if let Some((t, b1, b2)) = intersect_triangle(&rays[l], tri, t_max[l]) {
                 let (k, i) = (l / CHUNK, l % CHUNK);
                 let set = |v: &mut f32x4, x: f32| {
@@ -132,7 +134,7 @@ impl<const N: usize> PacketBlockRay<N> {
         const { assert!(N.is_multiple_of(CHUNK) && N <= MAX_LANES) };
         let first = &rays[lanes.trailing_zeros() as usize];
         let (kx, ky, kz) = (first.kx, first.ky, first.kz);
-        if crate::lanes_of(lanes).any(|l| (rays[l].kx, rays[l].ky, rays[l].kz) != (kx, ky, kz)) {
+        if crate::packet::width::lanes_of(lanes).any(|l| (rays[l].kx, rays[l].ky, rays[l].kz) != (kx, ky, kz)) {
             return None;
         }
         let chunks = |f: &dyn Fn(&Ray) -> f32| -> [f32x4; MAX_CHUNKS] {
@@ -353,7 +355,7 @@ mod tests {
             let block = TriBlock::pack(&[0, 1, 2, 3], &tris);
             let b = p.intersect_block(&block, j, all, t_max);
             assert_eq!((b.hit, b.edge), (h.hit, h.edge), "block lane {j}");
-            for l in crate::lanes_of(h.hit) {
+            for l in crate::packet::width::lanes_of(h.hit) {
                 assert_eq!(bits(Some(b.lane(l))), bits(Some(h.lane(l))), "block lane {j}, lane {l}");
             }
         }

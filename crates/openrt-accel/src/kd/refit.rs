@@ -17,10 +17,12 @@
 //! Shirley, "Ray tracing deformable scenes using dynamic bounding volume
 //! hierarchies", 2007).
 
-use crate::fast_build::{Fast, FastParams, PARALLEL_MIN, items_of, parallel_levels};
-use crate::kdnode::{KdNode, MAX_NODES, too_many_nodes};
-use crate::sah_build::BuiltTree;
-use crate::{Aabb, AccelError, Triangle};
+use crate::error::AccelError;
+use crate::geom::aabb::Aabb;
+use crate::geom::triangle::Triangle;
+use crate::kd::fast_build::{Fast, FastParams, PARALLEL_MIN, items_of, parallel_levels};
+use crate::kd::node::{KdNode, MAX_NODES, too_many_nodes};
+use crate::kd::sah_params::BuiltTree;
 
 /// The tree of `tris` on the planes of `old` (an elided node array).
 pub(crate) fn refit(old: &[KdNode], tris: &[Triangle], params: &FastParams) -> Result<BuiltTree, AccelError> {
@@ -103,8 +105,12 @@ impl Fast<'_> {
 mod tests {
     use glam::Vec3;
 
-    use crate::oracle::BruteForce;
-    use crate::{Aabb, BuilderKind, FastParams, KdTree, Triangle, meshgen};
+    use crate::geom::aabb::Aabb;
+    use crate::geom::triangle::Triangle;
+    use crate::kd::fast_build::FastParams;
+    use crate::kd::tree::{BuilderKind, KdTree};
+    use crate::testing::meshgen;
+    use crate::testing::oracle::BruteForce;
 
     /// `tris` moved smoothly at `time`: a wave along x, a drift along z.
     fn moved(tris: &[Triangle], time: f32) -> Vec<Triangle> {

@@ -18,7 +18,9 @@
 
 use wide::f32x4;
 
-use crate::{BOX_SLACK, BoxQuad, PacketBoxes, lanes_of};
+use crate::geom::box_quad::BoxQuad;
+use crate::packet::boxes::{BOX_SLACK, PacketBoxes};
+use crate::packet::width::lanes_of;
 
 /// Intervals holding the lanes of a packet, for [`PacketInterval::rejects_box_quad`].
 #[derive(Clone, Copy, Debug)]
@@ -113,7 +115,8 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     use super::*;
-    use crate::{Aabb, Ray};
+    use crate::geom::aabb::Aabb;
+    use crate::geom::ray::Ray;
 
     /// A vector with coordinates in `[-r, r)`.
     fn jitter(rng: &mut SmallRng, r: f32) -> Vec3 {

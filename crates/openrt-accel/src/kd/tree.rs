@@ -2,20 +2,26 @@
 
 use std::time::Instant;
 
-use crate::fast_build::{FastParams, build_fast};
-use crate::frustum::Frustum;
-use crate::kdnode::{KdNode, MAX_DEPTH, elide_empty_leaves};
-use crate::leaf_blocks::{
+use crate::error::AccelError;
+use crate::geom::aabb::Aabb;
+use crate::geom::hit::Hit;
+use crate::geom::ray::Ray;
+use crate::geom::triangle::Triangle;
+use crate::geom::triangle::is_valid_triangle;
+use crate::kd::fast_build::{FastParams, build_fast};
+use crate::kd::node::{KdNode, MAX_DEPTH, elide_empty_leaves};
+use crate::kd::sah_build::{build_sah, clipped_bounds};
+use crate::kd::sah_params::{BuiltTree, SahParams};
+use crate::kd::traverse::traverse;
+use crate::leaf::blocks::{
     BlockRay, LANES, LeafLists, NO_TIE, TriBlock, leaf_any, leaf_closest, leaf_packet, pack_leaves,
 };
-use crate::packet::lanes_of;
-use crate::sah_build::{BuiltTree, SahParams, build_sah, clipped_bounds};
-use crate::traverse::traverse;
-use crate::traverse_packet::traverse_packet;
-use crate::tri_mailbox::TriMailbox;
-use crate::triangle::is_valid_triangle;
-use crate::triangle_packet::{LaneHits, PacketBlockRay};
-use crate::{Aabb, AccelError, Hit, PacketBoxes, Ray, Triangle};
+use crate::leaf::mailbox::TriMailbox;
+use crate::packet::boxes::PacketBoxes;
+use crate::packet::frustum::Frustum;
+use crate::packet::traverse::traverse_packet;
+use crate::packet::triangle::{LaneHits, PacketBlockRay};
+use crate::packet::width::lanes_of;
 
 /// Largest tree validated automatically after its build in debug-assertion builds.
 #[cfg(debug_assertions)]
@@ -127,7 +133,7 @@ pub struct KdTree {
 
 impl KdTree {
     /// Builds an SAH tree with default costs: binned planes for nodes above
-    /// [`crate::DEFAULT_BINNED_ABOVE`] references, every candidate plane of
+    /// [`crate::kd::sah_params::DEFAULT_BINNED_ABOVE`] references, every candidate plane of
     /// Wald & Havran 2006 below.
     ///
     /// Zero-area triangles and triangles with non-finite vertices are left
@@ -168,7 +174,7 @@ impl KdTree {
         if prev.stats.builder != BuilderKind::Fast {
             return Self::build_fast_with(tris, params);
         }
-        let built = crate::refit::refit(&prev.nodes, &tris, params)?;
+        let built = crate::kd::refit::refit(&prev.nodes, &tris, params)?;
         let cost = built.cost.unwrap_or(f64::INFINITY);
         if cost > prev.stats.base_cost * params.refit_cost_limit {
             let mut tree = Self::build_fast_with(tris, params)?;
@@ -372,7 +378,7 @@ impl KdTree {
     /// lanes that found a closer hit.
     ///
     /// Lanes that share direction signs walk the tree as a packet
-    /// ([`crate::traverse_packet`]); each lane tests its leaves' triangles
+    /// ([`crate::packet::traverse`]); each lane tests its leaves' triangles
     /// with the scalar kernel's exact arithmetic.
     pub fn intersect_packet<const N: usize>(
         &self,
@@ -775,7 +781,7 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::meshgen;
+    use crate::testing::meshgen;
 
     /// Every non-empty leaf of `tree`.
     fn leaves(tree: &KdTree) -> Vec<KdNode> {

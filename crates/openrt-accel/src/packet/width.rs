@@ -2,7 +2,7 @@
 //! grouping of a packet's rays by direction signs.
 //!
 //! A packet is an array of `N` [`Ray`]s with a `u32` mask of the lanes in
-//! use. Packet traversal ([`crate::traverse_packet`]) needs every active
+//! use. Packet traversal ([`crate::packet::traverse`]) needs every active
 //! lane to share the signs of its direction components (then the near/far
 //! order of every split is the same for all lanes) and to have no zero
 //! component (whose side of a plane the origin decides); [`sign_groups`]
@@ -14,7 +14,7 @@ use std::sync::OnceLock;
 
 use wide::f32x4;
 
-use crate::Ray;
+use crate::geom::ray::Ray;
 
 /// Widest packet any kernel is instantiated for (one AVX-512 register of `f32`).
 pub const MAX_LANES: usize = 16;

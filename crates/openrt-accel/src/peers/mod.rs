@@ -1,0 +1,3 @@
+//! Peers measured beside the kernels (feature `embree`): Embree 3.
+
+pub(crate) mod embree;
