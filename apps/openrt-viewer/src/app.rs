@@ -7,7 +7,7 @@ use std::time::Instant;
 use eframe::egui;
 use egui_file_dialog::FileDialog;
 use openrt_accel::BuilderKind;
-use openrt_core::{Backend, Camera, RenderMode, RenderSettings};
+use openrt_core::{Accel, Backend, Camera, RenderMode, RenderSettings};
 
 use crate::orbit;
 use crate::worker::{FrameResult, Reply, Request, SceneInfo, Worker};
@@ -52,6 +52,8 @@ pub struct ViewerApp {
     mode: RenderMode,
     depth: u32,
     backend: Backend,
+    /// The structure under the objects.
+    accel: Accel,
     threads: usize,
     scale: f32,
     // Statistics.
@@ -100,6 +102,7 @@ impl ViewerApp {
             mode: RenderMode::GlLike,
             depth: 3,
             backend: Backend::default(),
+            accel: Accel::default(),
             threads: opts.threads,
             scale: 0.5,
             frames_rendered: 0,
@@ -172,6 +175,7 @@ impl ViewerApp {
             settings,
             threads: self.threads,
             backend: self.backend,
+            accel: self.accel,
         };
         if self.worker.tx.send(req).is_ok() {
             self.in_flight = true;
@@ -206,6 +210,7 @@ impl ViewerApp {
             };
             match reply {
                 Reply::Opened(info) => {
+                    self.accel = info.accel;
                     self.time = info.time_range.0;
                     self.info = Some(info);
                     self.camera = None;
@@ -428,6 +433,12 @@ impl ViewerApp {
             ui.label("traversal");
             for &b in Backend::ALL {
                 self.dirty |= ui.radio_value(&mut self.backend, b, b.name()).changed();
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("objects");
+            for a in [Accel::Kd, Accel::Bvh] {
+                self.dirty |= ui.radio_value(&mut self.accel, a, a.name()).changed();
             }
         });
         self.dirty |= ui

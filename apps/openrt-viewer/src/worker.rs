@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use crossbeam::channel::{Receiver, Sender, unbounded};
-use openrt_core::{Backend, Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer};
+use openrt_core::{Accel, Backend, Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer};
 use openrt_scene::ScenePlayer;
 
 /// What the UI asks for.
@@ -20,6 +20,8 @@ pub enum Request {
         settings: RenderSettings,
         threads: usize,
         backend: Backend,
+        /// The structure under the objects (a change rebuilds them).
+        accel: Accel,
     },
 }
 
@@ -32,6 +34,8 @@ pub struct SceneInfo {
     pub frames: u32,
     pub time_range: (f32, f32),
     pub settings: RenderSettings,
+    /// The structure the scene file asks for.
+    pub accel: Accel,
 }
 
 /// What the render thread sends back.
@@ -150,6 +154,7 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                             frames: p.frames(),
                             time_range: p.time_range(),
                             settings: p.settings(),
+                            accel: p.ctx().accel(),
                         };
                         player = Some(p);
                         Reply::Opened(info)
@@ -163,8 +168,10 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                     settings,
                     threads,
                     backend,
+                    accel,
                 } => {
                     let Some(p) = player.as_mut() else { continue };
+                    p.ctx_mut().set_accel(accel);
                     let pool = share_pool(p, &mut renderer, threads).map_err(|e| e.to_string());
                     match (pool, renderer.as_mut()) {
                         (Err(e), _) => Reply::Error(e),

@@ -141,9 +141,10 @@ struct Quality {
     /// `--features embree` add `embree` and `embree-packet`.
     #[arg(long, default_value = "kd")]
     backend: Backend,
-    /// Object structure: `kd` (the paper's kd-trees) or `bvh` (4-wide BVHs); the same images.
-    #[arg(long, default_value = "kd")]
-    accel: Accel,
+    /// Object structure: `kd` (the paper's kd-trees) or `bvh` (4-wide BVHs); the same images
+    /// (default: the scene's `accel`, else `kd`).
+    #[arg(long)]
+    accel: Option<Accel>,
 }
 
 #[derive(Subcommand)]
@@ -320,7 +321,9 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
 /// Gives the scene's commit pool the render thread count (`--threads`).
 fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
     // The scene's objects are rebuilt with this structure at the next commit.
-    player.ctx_mut().set_accel(q.accel);
+    if let Some(a) = q.accel {
+        player.ctx_mut().set_accel(a);
+    }
     player
         .ctx_mut()
         .set_threads(threads(q))

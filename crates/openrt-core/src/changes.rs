@@ -121,6 +121,8 @@ pub enum ObjectChange {
         mesh: MeshData,
         /// The builder of its tree: the replica builds the same tree.
         sah: bool,
+        /// The object's own structure ([`Context::set_object_accel`]).
+        accel: Option<crate::Accel>,
     },
     /// Slot `index` was deleted (its generation after the deletion).
     Deleted {
@@ -348,7 +350,12 @@ impl Context {
             }
             let redefinition_sah = self.redefinition_builder == BuilderKind::Sah;
             let mesh = if let Some(p) = &slot.pending {
-                Some((mesh_data(p), slot.geometry.is_none() || redefinition_sah))
+                // A rebuild for a new structure keeps the builder it had.
+                let sah = match slot.forced_builder {
+                    Some(b) => b == BuilderKind::Sah,
+                    None => slot.geometry.is_none() || redefinition_sah,
+                };
+                Some((mesh_data(p), sah))
             } else if std::mem::take(&mut slot.resend) {
                 slot.geometry.as_ref().map(|g| {
                     (
@@ -372,6 +379,7 @@ impl Context {
                     generation: slot.generation,
                     mesh,
                     sah,
+                    accel: slot.accel,
                 });
             }
             if swapped.iter().any(|s| s.index == index) {
@@ -481,6 +489,7 @@ impl Context {
                     generation,
                     mesh,
                     sah,
+                    accel,
                 } => {
                     let s = slot(&mut self.objects, *index);
                     if !s.alive || s.generation != *generation {
@@ -492,6 +501,7 @@ impl Context {
                     }
                     s.pending = Some(mesh_from(mesh)?);
                     s.forced_builder = Some(if *sah { BuilderKind::Sah } else { BuilderKind::Fast });
+                    s.accel = *accel;
                 }
                 ObjectChange::Deleted { index, generation } => {
                     let s = slot(&mut self.objects, *index);
@@ -671,5 +681,51 @@ mod tests {
         m.commit().unwrap();
         sync(&mut m, &mut r);
         assert!(r.object_builder(b).is_err(), "deleted on the replica too");
+    }
+
+    #[test]
+    fn structures_and_their_switches_reach_the_replica() {
+        let mut m = Context::new();
+        let (a, b) = (m.gen_object(), m.gen_object());
+        define(&mut m, a, 1);
+        define(&mut m, b, 2);
+        m.instantiate(a).unwrap();
+        m.load_matrix(Mat4::from_translation(Vec3::X * 2.0)).unwrap();
+        m.instantiate(b).unwrap();
+        m.commit().unwrap();
+        m.record_changes();
+        let mut r = Context::new();
+        m.commit().unwrap();
+        sync(&mut m, &mut r);
+        // BVHs for the scene, but a kd-tree for `b`: both objects are
+        // rebuilt with the builders they had (SAH), and so are the replica's.
+        m.set_accel(crate::Accel::Bvh);
+        m.set_object_accel(b, Some(crate::Accel::Kd)).unwrap();
+        m.commit().unwrap();
+        sync(&mut m, &mut r);
+        for ctx in [&m, &r] {
+            let accels: Vec<crate::Accel> = ctx
+                .scene()
+                .instances()
+                .iter()
+                .map(|i| i.geometry.tree.accel())
+                .collect();
+            assert_eq!(accels, vec![crate::Accel::Bvh, crate::Accel::Kd]);
+            assert_eq!(ctx.object_builder(a).unwrap(), Some(BuilderKind::Sah));
+            assert_eq!(ctx.object_builder(b).unwrap(), Some(BuilderKind::Sah));
+        }
+        // Back to the context's structure.
+        m.set_object_accel(b, None).unwrap();
+        m.commit().unwrap();
+        sync(&mut m, &mut r);
+        assert!(
+            r.scene()
+                .instances()
+                .iter()
+                .all(|i| i.geometry.tree.accel() == crate::Accel::Bvh)
+        );
+        assert!(matches!(m.set_object_accel(crate::ObjectId { ..a }, None), Ok(())));
+        m.delete_object(a).unwrap();
+        assert!(m.set_object_accel(a, None).is_err(), "a deleted object is refused");
     }
 }

@@ -213,7 +213,9 @@ impl Context {
                 // smaller one runs here (the same tree, without waking the pool).
                 let tree = self
                     .bsp_builder
-                    .install_build(builder, n, || build_tree(accel, tris, builder, prev, fail))
+                    .install_build(builder, n, || {
+                        build_tree(slot.accel.unwrap_or(accel), tris, builder, prev, fail)
+                    })
                     .map_err(|source| CoreError::Accel { call: "commit", source })?;
                 stats.builds.push(BuildRecord {
                     object: id,

@@ -58,9 +58,29 @@ pub(crate) struct ObjectSlot {
     pub resend: bool,
     /// A replica builds the pending definition with the master's builder.
     pub forced_builder: Option<openrt_accel::BuilderKind>,
+    /// This object's structure, over the context's ([`Context::set_object_accel`]).
+    pub accel: Option<crate::Accel>,
 }
 
 impl ObjectSlot {
+    /// Queues the committed geometry for a rebuild with the builder it had
+    /// when its tree is not of structure `accel` (nothing for a dead slot,
+    /// one without geometry, or one with a pending definition, which the
+    /// next commit builds with the new structure anyway).
+    pub(crate) fn requeue_for(&mut self, accel: crate::Accel) {
+        if !self.alive || self.pending.is_some() {
+            return;
+        }
+        if let Some(g) = self.geometry.as_ref().filter(|g| g.tree.accel() != accel) {
+            self.forced_builder = Some(g.builder());
+            self.pending = Some(crate::ObjectMesh {
+                triangles: g.tree.triangles().to_vec(),
+                shading: (*g.shading).clone(),
+                dropped: 0,
+            });
+        }
+    }
+
     /// A slot with nothing in it.
     pub(crate) fn dead() -> Self {
         Self {
@@ -73,6 +93,7 @@ impl ObjectSlot {
             promotion: None,
             resend: false,
             forced_builder: None,
+            accel: None,
         }
     }
 }
@@ -232,19 +253,22 @@ impl Context {
         }
         self.accel = accel;
         for slot in &mut self.objects {
-            if !slot.alive || slot.pending.is_some() {
-                continue;
-            }
-            if let Some(g) = &slot.geometry {
-                let triangles = g.tree.triangles().to_vec();
-                slot.forced_builder = Some(g.builder());
-                slot.pending = Some(crate::ObjectMesh {
-                    triangles,
-                    shading: (*g.shading).clone(),
-                    dropped: 0,
-                });
+            if slot.accel.is_none() {
+                slot.requeue_for(accel);
             }
         }
+    }
+
+    /// The structure of one object, over the context's (`None`: the
+    /// context's, [`Context::set_accel`]); a built object is rebuilt with it
+    /// at the next commit. The images are the same bytes either way.
+    pub fn set_object_accel(&mut self, id: ObjectId, accel: Option<crate::Accel>) -> Result<(), CoreError> {
+        self.object_slot("set_object_accel", id)?;
+        let want = accel.unwrap_or(self.accel);
+        let slot = &mut self.objects[id.index as usize];
+        slot.accel = accel;
+        slot.requeue_for(want);
+        Ok(())
     }
 
     /// The structure new and redefined objects get.

@@ -270,7 +270,10 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
             scene.animated = animart(n as usize, b.seed, material);
             scene.counts.animated_triangles = n as usize;
         }
-        return Ok(RonScene::Bart(Box::new(AffPlayer::new(scene)?)));
+        let mut player = AffPlayer::new(scene)?;
+        // Objects already built get the scene's structure at the next commit.
+        player.ctx.set_accel(file.accel);
+        return Ok(RonScene::Bart(Box::new(player)));
     }
     Ok(RonScene::Scene(Box::new(
         Builder {
@@ -470,6 +473,7 @@ impl Builder {
     fn build(&self, f: &SceneFile) -> Result<LoadedScene, SceneError> {
         self.check_limits(f)?;
         let mut ctx = Context::new();
+        ctx.set_accel(f.accel);
         let dir = self.path.parent().unwrap_or(Path::new("."));
         let mut textures = BTreeMap::new();
         for (name, file) in &f.textures {

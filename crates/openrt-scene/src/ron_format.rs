@@ -56,6 +56,10 @@ pub struct SceneFile {
     /// (v2) Procedural content added to the scene.
     #[serde(default)]
     pub generators: Vec<GeneratorDesc>,
+    /// (v2) The structure under every object: `Kd` (default) or `Bvh`
+    /// (the same images; `--accel` overrides it).
+    #[serde(default)]
+    pub accel: openrt_core::Accel,
 }
 
 /// (v2) Animation range: `frames` frames evenly spaced from `start` to `end`.

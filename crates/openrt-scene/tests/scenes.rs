@@ -159,3 +159,44 @@ fn malformed_scenes_give_file_line_and_column() {
     let e = load_ron(Path::new("/no/such/scene.ron")).err().unwrap();
     assert!(e.to_string().contains("/no/such/scene.ron"));
 }
+
+/// `accel: Bvh` in a scene file puts BVHs under its objects, and the image
+/// is the kd-tree scene's, byte for byte.
+#[test]
+fn a_scene_file_chooses_its_structure() {
+    let text = std::fs::read_to_string(repo().join("scenes/room.ron")).unwrap();
+    let kd = load_ron_str(&text, &repo().join("scenes/room.ron")).unwrap();
+    let end = text.rfind(')').expect("a RON struct");
+    let with_bvh = format!("{}, accel: Bvh)", text[..end].trim_end().trim_end_matches(','));
+    let bvh = load_ron_str(&with_bvh, &repo().join("scenes/room.ron")).unwrap();
+    let accels = |s: &openrt_scene::LoadedScene| -> Vec<openrt_core::Accel> {
+        s.ctx
+            .scene()
+            .instances()
+            .iter()
+            .map(|i| i.geometry.tree.accel())
+            .collect()
+    };
+    assert!(accels(&kd).iter().all(|a| *a == openrt_core::Accel::Kd));
+    assert!(!accels(&bvh).is_empty() && accels(&bvh).iter().all(|a| *a == openrt_core::Accel::Bvh));
+    let settings = RenderSettings {
+        width: 80,
+        height: 60,
+        max_depth: 3,
+        ..RenderSettings::default()
+    };
+    let img = |s: &openrt_scene::LoadedScene| {
+        Renderer::new(2)
+            .expect("a render pool")
+            .render(&s.ctx.scene(), &s.env, &s.camera, &settings)
+            .unwrap()
+            .0
+            .to_rgb8()
+    };
+    assert!(img(&kd) == img(&bvh), "the BVH scene renders other bytes");
+    let e = err(&format!(
+        "{}, accel: Octree)",
+        text[..end].trim_end().trim_end_matches(',')
+    ));
+    assert!(e.to_string().contains("Octree"), "{e}");
+}
