@@ -146,8 +146,17 @@ fn summary() {
         let mut bvh = None;
         let bs = median_secs(reps, || bvh = Some(Bvh::build(tris.clone()).unwrap()));
         let bvh = bvh.unwrap();
+        #[cfg(feature = "embree")]
+        let embree_build = {
+            let mut v: Vec<f64> = (0..reps)
+                .map(|_| openrt_accel::embree_medium_build_secs(&tris).unwrap())
+                .collect();
+            format!("{:.2}", tris.len() as f64 / median(&mut v) / 1e6)
+        };
+        #[cfg(not(feature = "embree"))]
+        let embree_build = "-".to_string();
         println!(
-            "{:>9} BVH build {:.2} Mt/s (one thread)",
+            "{:>9} build Mt/s, one thread: kd SAH {build:.2}, BVH {:.2}, Embree MEDIUM {embree_build} (goal: BVH >= Embree MEDIUM)",
             tris.len(),
             tris.len() as f64 / bs / 1e6
         );

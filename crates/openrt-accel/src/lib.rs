@@ -62,6 +62,6 @@ pub use packet::interval::PacketInterval;
 pub use packet::traverse::traverse_packet;
 pub use packet::width::{LANES_ENV, MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
 #[cfg(feature = "embree")]
-pub use peers::embree::{EmbreeMesh, EmbreeTwoLevel};
+pub use peers::embree::{EmbreeMesh, EmbreeTwoLevel, embree_medium_build_secs};
 pub use testing::{meshgen, oracle};
 pub use toplevel::bsp::{BspBuilder, InstanceBsp};

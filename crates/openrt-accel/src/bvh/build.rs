@@ -12,7 +12,7 @@
 //! [`crate::kd::fast_build::PARALLEL_MIN`] triangles are built as tasks of the pool the build
 //! runs in.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::node::{BVH_WIDTH, BvhNode, LEAF_BIT};
 use crate::geom::aabb::Aabb;
@@ -30,26 +30,52 @@ pub(crate) const MEDIAN_DEPTH: usize = 32;
 const TRAVERSAL_COST: f32 = 1.0;
 
 /// A triangle as the builder sees it: box and index.
+///
+/// PERF: `Vec3A` (one SSE register a corner): the builder's box unions and
+/// centres are `minps`/`maxps`/`addps` (with `Vec3` they were scalar
+/// shuffles, most of the build's time).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Ref {
-    pub(crate) lo: Vec3,
-    pub(crate) hi: Vec3,
+    pub(crate) lo: Vec3A,
+    pub(crate) hi: Vec3A,
     pub(crate) id: u32,
 }
 
 impl Ref {
     #[inline]
-    fn centre(&self) -> Vec3 {
+    fn centre(&self) -> Vec3A {
         (self.lo + self.hi) * 0.5
+    }
+}
+
+/// A box as two `Vec3A` corners (empty: `+inf` / `-inf`).
+#[derive(Clone, Copy)]
+struct Box3A(Vec3A, Vec3A);
+
+impl Box3A {
+    const EMPTY: Self = Self(Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+
+    #[inline]
+    fn union(self, o: Self) -> Self {
+        Self(self.0.min(o.0), self.1.max(o.1))
+    }
+
+    #[inline]
+    fn area(self) -> f32 {
+        self.aabb().surface_area()
+    }
+
+    fn aabb(self) -> Aabb {
+        Aabb {
+            min: Vec3::from(self.0),
+            max: Vec3::from(self.1),
+        }
     }
 }
 
 /// Bounds of a range of references.
 pub(crate) fn bounds_of(refs: &[Ref]) -> Aabb {
-    let (lo, hi) = refs.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| {
-        (l.min(r.lo), h.max(r.hi))
-    });
-    Aabb { min: lo, max: hi }
+    refs.iter().fold(Box3A::EMPTY, |b, r| b.union(Box3A(r.lo, r.hi))).aabb()
 }
 
 /// Leaf cost of `n` triangles: blocks of four are tested at once.
@@ -67,10 +93,11 @@ struct Kid {
     leaf: bool,
 }
 
-/// Where to split a range: at `mid` after partitioning, or not at all.
+/// Where to split a range: at `mid` after partitioning (with the two
+/// sides' bounds when binning found them), or not at all.
 enum Split {
     Leaf,
-    At(usize),
+    At(usize, Option<(Aabb, Aabb)>),
 }
 
 /// The best SAH split of `refs` (partitioned in place), or a leaf.
@@ -79,22 +106,23 @@ fn split(refs: &mut [Ref], bounds: &Aabb, depth: usize) -> Split {
     if n <= 1 {
         return Split::Leaf;
     }
-    let (clo, chi) = refs.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), r| {
+    let (clo, chi) = refs.iter().fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(l, h), r| {
         (l.min(r.centre()), h.max(r.centre()))
     });
     let ext = chi - clo;
     if depth < MEDIAN_DEPTH
-        && let Some((axis, bin, cost)) = best_bin(refs, clo, ext)
+        && let Some(best) = best_bin(refs, clo, ext)
     {
         let area = bounds.surface_area().max(f32::MIN_POSITIVE);
-        let split_cost = TRAVERSAL_COST + cost / area;
+        let split_cost = TRAVERSAL_COST + best.cost / area;
         if n <= BVH_MAX_LEAF && split_cost >= leaf_cost(n) {
             return Split::Leaf;
         }
+        let (axis, bin) = (best.axis, best.bin);
         let scale = BINS as f32 / ext[axis];
         let mid = partition(refs, |r| bin_of(r.centre()[axis], clo[axis], scale) <= bin);
         if mid > 0 && mid < n {
-            return Split::At(mid);
+            return Split::At(mid, Some((best.left, best.right)));
         }
     } else if n <= 2 {
         return Split::Leaf;
@@ -104,7 +132,7 @@ fn split(refs: &mut [Ref], bounds: &Aabb, depth: usize) -> Split {
     let axis = if ext.max_element() > 0.0 { ext.max_position() } else { 0 };
     let mid = n / 2;
     refs.select_nth_unstable_by(mid, |a, b| a.centre()[axis].total_cmp(&b.centre()[axis]));
-    Split::At(mid)
+    Split::At(mid, None)
 }
 
 #[inline]
@@ -112,46 +140,65 @@ fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
     (((c - lo) * scale) as usize).min(BINS - 1)
 }
 
-/// The cheapest binned plane: axis, last bin of the left side, and its
-/// cost `A_left N_left + A_right N_right` (in blocks). `None` when no axis
-/// separates the centres.
-fn best_bin(refs: &[Ref], clo: Vec3, ext: Vec3) -> Option<(usize, usize, f32)> {
-    let mut best: Option<(usize, usize, f32)> = None;
-    for axis in 0..3 {
-        if ext[axis] <= 0.0 || !ext[axis].is_finite() {
-            continue;
+/// The cheapest binned plane.
+struct BestBin {
+    axis: usize,
+    /// Last bin of the left side.
+    bin: usize,
+    /// `A_left N_left + A_right N_right` (counts in blocks).
+    cost: f32,
+    /// The two sides' bounds (unions of their bins' boxes).
+    left: Aabb,
+    right: Aabb,
+}
+
+/// The cheapest binned plane over the three axes, binned in one pass over
+/// the references; `None` when no axis separates the centres.
+fn best_bin(refs: &[Ref], clo: Vec3A, ext: Vec3A) -> Option<BestBin> {
+    let usable: [bool; 3] = std::array::from_fn(|a| ext[a] > 0.0 && ext[a].is_finite());
+    if !usable.iter().any(|&u| u) {
+        return None;
+    }
+    let scale: [f32; 3] = std::array::from_fn(|a| if usable[a] { BINS as f32 / ext[a] } else { 0.0 });
+    let mut boxes = [[Box3A::EMPTY; BINS]; 3];
+    let mut counts = [[0usize; BINS]; 3];
+    for r in refs {
+        let c = r.centre();
+        for a in 0..3 {
+            let b = bin_of(c[a], clo[a], scale[a]);
+            counts[a][b] += 1;
+            boxes[a][b] = boxes[a][b].union(Box3A(r.lo, r.hi));
         }
-        let scale = BINS as f32 / ext[axis];
-        let mut boxes = [Aabb::EMPTY; BINS];
-        let mut counts = [0usize; BINS];
-        for r in refs {
-            let b = bin_of(r.centre()[axis], clo[axis], scale);
-            counts[b] += 1;
-            boxes[b] = Aabb {
-                min: boxes[b].min.min(r.lo),
-                max: boxes[b].max.max(r.hi),
-            };
-        }
-        // Right-to-left sweep of the right sides' areas and counts.
-        let mut right_area = [0.0f32; BINS];
+    }
+    let mut best: Option<BestBin> = None;
+    for axis in (0..3).filter(|&a| usable[a]) {
+        let (boxes, counts) = (&boxes[axis], &counts[axis]);
+        // Right-to-left sweep of the right sides' boxes and counts.
+        let mut right_box = [Box3A::EMPTY; BINS];
         let mut right_n = [0usize; BINS];
-        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        let (mut acc, mut n) = (Box3A::EMPTY, 0);
         for b in (1..BINS).rev() {
             acc = acc.union(boxes[b]);
             n += counts[b];
-            right_area[b] = if n > 0 { acc.surface_area() } else { 0.0 };
+            right_box[b] = acc;
             right_n[b] = n;
         }
-        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        let (mut acc, mut n) = (Box3A::EMPTY, 0);
         for b in 0..BINS - 1 {
             acc = acc.union(boxes[b]);
             n += counts[b];
             if n == 0 || right_n[b + 1] == 0 {
                 continue;
             }
-            let cost = acc.surface_area() * leaf_cost(n) + right_area[b + 1] * leaf_cost(right_n[b + 1]);
-            if best.is_none_or(|(_, _, c)| cost < c) {
-                best = Some((axis, b, cost));
+            let cost = acc.area() * leaf_cost(n) + right_box[b + 1].area() * leaf_cost(right_n[b + 1]);
+            if best.as_ref().is_none_or(|x| cost < x.cost) {
+                best = Some(BestBin {
+                    axis,
+                    bin: b,
+                    cost,
+                    left: acc.aabb(),
+                    right: right_box[b + 1].aabb(),
+                });
             }
         }
     }
@@ -200,10 +247,9 @@ fn grow(refs: &mut [Ref], bounds: Aabb, depth: usize) -> ([Kid; BVH_WIDTH], usiz
         let Kid { start, end, bounds, .. } = kids[k];
         match split(&mut refs[start..end], &bounds, depth) {
             Split::Leaf => kids[k].leaf = true,
-            Split::At(mid) => {
+            Split::At(mid, sides) => {
                 let (l, r) = (start..start + mid, start + mid..end);
-                let lb = bounds_of(&refs[l.clone()]);
-                let rb = bounds_of(&refs[r.clone()]);
+                let (lb, rb) = sides.unwrap_or_else(|| (bounds_of(&refs[l.clone()]), bounds_of(&refs[r.clone()])));
                 kids[k] = Kid {
                     start: l.start,
                     end: l.end,

@@ -151,8 +151,8 @@ fn refs_of(tris: &[Triangle]) -> Vec<Ref> {
         .enumerate()
         .filter(|(_, t)| is_valid_triangle(t))
         .map(|(i, t)| Ref {
-            lo: t[0].min(t[1]).min(t[2]),
-            hi: t[0].max(t[1]).max(t[2]),
+            lo: t[0].min(t[1]).min(t[2]).into(),
+            hi: t[0].max(t[1]).max(t[2]).into(),
             id: i as u32,
         })
         .collect()

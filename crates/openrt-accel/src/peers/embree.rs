@@ -76,13 +76,38 @@ fn mesh_scene(
     high_quality: bool,
     flags: SceneFlags,
 ) -> Result<Scene<'static>, String> {
-    let mut scene = device.create_scene().map_err(|e| format!("embree scene: {e:?}"))?;
-    scene.set_flags(flags);
     let quality = if high_quality {
         BuildQuality::HIGH
     } else {
         BuildQuality::LOW
     };
+    mesh_scene_with(device, tris, quality, flags)
+}
+
+/// Seconds Embree takes to build a scene over `tris` at its MEDIUM (default)
+/// quality with one build thread: copying the triangles into its buffers
+/// and committing the scene; the device is made before the clock starts.
+pub fn embree_medium_build_secs(tris: &[Triangle]) -> Result<f64, String> {
+    let config = embree3::Config {
+        threads: 1,
+        ..embree3::Config::default()
+    };
+    let device = Device::with_config(config).map_err(|e| format!("embree device: {e:?}"))?;
+    let start = std::time::Instant::now();
+    let scene = mesh_scene_with(&device, tris, BuildQuality::MEDIUM, SceneFlags::NONE)?;
+    let secs = start.elapsed().as_secs_f64();
+    drop(scene);
+    Ok(secs)
+}
+
+fn mesh_scene_with(
+    device: &Device,
+    tris: &[Triangle],
+    quality: BuildQuality,
+    flags: SceneFlags,
+) -> Result<Scene<'static>, String> {
+    let mut scene = device.create_scene().map_err(|e| format!("embree scene: {e:?}"))?;
+    scene.set_flags(flags);
     scene.set_build_quality(quality);
     if !tris.is_empty() {
         let mut geom = device
