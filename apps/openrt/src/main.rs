@@ -137,10 +137,11 @@ struct Quality {
     /// Samples per pixel (low-discrepancy positions, the same for any thread count).
     #[arg(long, default_value_t = 1)]
     spp: u32,
-    /// Traversal backend: `kd` (ray packets), `kd-single` (one ray at a time); builds with
-    /// `--features embree` add `embree` and `embree-packet`.
+    /// Traversal backend: `kd` (ray packets), `kd-single` (one ray at a time), `bvh` and
+    /// `bvh-single` (the same with `--accel bvh`); builds with `--features embree` add
+    /// `embree` and `embree-packet`.
     #[arg(long, default_value = "kd")]
-    backend: Backend,
+    backend: BackendChoice,
     /// Object structure: `kd` (the paper's kd-trees) or `bvh` (4-wide BVHs); the same images
     /// (default: the scene's `accel`, else `kd`).
     #[arg(long)]
@@ -301,6 +302,26 @@ pub fn open_scene(path: Option<&Path>, strict: bool) -> Result<ScenePlayer, Stri
     Ok(player)
 }
 
+/// `--backend`: a traversal backend, and for `bvh` / `bvh-single` the
+/// structure under the objects too (the `kd` backends over BVHs).
+#[derive(Clone, Copy, Debug)]
+struct BackendChoice {
+    backend: Backend,
+    accel: Option<Accel>,
+}
+
+impl std::str::FromStr for BackendChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (backend, accel) = match s {
+            "bvh" => (Backend::Kd, Some(Accel::Bvh)),
+            "bvh-single" => (Backend::KdSingle, Some(Accel::Bvh)),
+            _ => (s.parse::<Backend>().map_err(|e| format!("{e}, bvh, bvh-single"))?, None),
+        };
+        Ok(Self { backend, accel })
+    }
+}
+
 /// Load warnings printed one by one; the rest are counted.
 const MAX_PRINTED_WARNINGS: usize = 20;
 
@@ -321,7 +342,7 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
 /// Gives the scene's commit pool the render thread count (`--threads`).
 fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
     // The scene's objects are rebuilt with this structure at the next commit.
-    if let Some(a) = q.accel {
+    if let Some(a) = q.accel.or(q.backend.accel) {
         player.ctx_mut().set_accel(a);
     }
     player
@@ -335,14 +356,14 @@ fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
 fn renderer(player: &mut ScenePlayer, q: &Quality) -> Result<Renderer, String> {
     let pool = player.ctx_mut().pool().map_err(|e| format!("--threads: {e}"))?;
     let mut r = Renderer::with_pool(pool);
-    r.set_backend(q.backend);
+    r.set_backend(q.backend.backend);
     Ok(r)
 }
 
 /// A renderer of its own pool (`--threads`), for a run that opens its scene itself.
 fn own_renderer(q: &Quality) -> Result<Renderer, String> {
     let mut r = Renderer::new(threads(q)).map_err(|e| format!("--threads: {e}"))?;
-    r.set_backend(q.backend);
+    r.set_backend(q.backend.backend);
     Ok(r)
 }
 
@@ -416,7 +437,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             let scene = player.ctx().scene();
             let r = stats.rays;
             println!(
-                "{}: t={t} {}x{} {:?} depth {} on {} threads, backend {}: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles",
+                "{}: t={t} {}x{} {:?} depth {} on {} threads, backend {} over {} objects: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles",
                 output.display(),
                 s.width,
                 s.height,
@@ -424,6 +445,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 s.max_depth,
                 stats.threads,
                 renderer.backend().name(),
+                player.ctx().accel().name(),
                 stats.render_ms,
                 stats.mrays_per_s,
                 r.primary,

@@ -1,7 +1,8 @@
 //! `OPENRT_PACKET_LANES` forces the packet width of the `kd` backend (4 is
 //! the portable baseline, 8 and 16 the AVX2 and AVX-512 widths); every
 //! width renders the bytes of the single-ray path, with frustum culling and
-//! without it (`OPENRT_NO_FRUSTUM`).
+//! without it (`OPENRT_NO_FRUSTUM`), over kd-trees and over BVHs
+//! (`--backend bvh`, `bvh-single`).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -41,6 +42,11 @@ fn every_forced_width_gives_the_single_ray_bytes() {
     std::fs::create_dir_all(&dir).unwrap();
     for mode in ["gl", "whitted"] {
         let want = render(&dir, &format!("single-{mode}"), "kd-single", None, mode, true);
+        let bvh_single = render(&dir, &format!("bvh-single-{mode}"), "bvh-single", None, mode, true);
+        assert!(
+            bvh_single == want,
+            "{mode}: bvh-single gives other bytes than kd-single"
+        );
         for lanes in ["4", "8", "16"] {
             for frustum in [true, false] {
                 let got = render(
@@ -55,6 +61,19 @@ fn every_forced_width_gives_the_single_ray_bytes() {
                     got == want,
                     "{mode}: {} = {lanes}, frustum culling {frustum}, gives other bytes",
                     openrt_accel::LANES_ENV
+                );
+                // The same packets over BVHs (`--backend bvh`: kd packets, `--accel bvh`).
+                let bvh = render(
+                    &dir,
+                    &format!("bvh{lanes}-{mode}-{frustum}"),
+                    "bvh",
+                    Some(lanes),
+                    mode,
+                    frustum,
+                );
+                assert!(
+                    bvh == want,
+                    "{mode}: BVH packets of {lanes} lanes, frustum culling {frustum}, give other bytes"
                 );
             }
         }
