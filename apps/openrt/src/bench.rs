@@ -662,19 +662,24 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
 /// that the machine's slow and fast phases fall on all of them alike; the
 /// render ratio is the median of the per-frame ratios. Returns the median
 /// over the frames of refitted-tree render time / afresh-tree render time.
-fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<f64, String> {
+/// Returns the median per-frame ratios of Whitted render time with
+/// refitted trees to trees built afresh: kd-trees, then BVHs.
+fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(f64, f64), String> {
     let _ = writeln!(
         out,
         "\n| moving-object builder | commit ms (median) | Whitted render ms | frame ms |\n|---|---:|---:|---:|"
     );
     let variants = [
-        ("fast, refitted (default)", BuilderKind::Fast, true),
-        ("fast, afresh", BuilderKind::Fast, false),
-        ("SAH", BuilderKind::Sah, false),
+        ("fast, refitted (default)", BuilderKind::Fast, true, Accel::Kd),
+        ("fast, afresh", BuilderKind::Fast, false, Accel::Kd),
+        ("SAH", BuilderKind::Sah, false, Accel::Kd),
+        ("BVH, refitted", BuilderKind::Fast, true, Accel::Bvh),
+        ("BVH, afresh", BuilderKind::Fast, false, Accel::Bvh),
     ];
     let mut players = Vec::new();
-    for &(_, b, refit) in &variants {
+    for &(_, b, refit, accel) in &variants {
         let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+        player.ctx_mut().set_accel(accel);
         player.ctx_mut().set_redefinition_builder(b);
         player.ctx_mut().set_refit(refit);
         player.ctx_mut().set_promote_after(None);
@@ -710,18 +715,21 @@ fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<f64, Strin
             renders[v].push(fs.render_ms);
         }
     }
-    let ratio = median(
-        renders[0]
-            .iter()
-            .zip(&renders[1])
-            .map(|(a, b)| a / b.max(1e-9))
-            .collect(),
-    );
+    let ratio = |a: usize, b: usize| {
+        median(
+            renders[a]
+                .iter()
+                .zip(&renders[b])
+                .map(|(x, y)| x / y.max(1e-9))
+                .collect(),
+        )
+    };
+    let ratios = (ratio(0, 1), ratio(3, 4));
     for ((label, ..), (c, rt)) in variants.iter().zip(commits.into_iter().zip(renders)) {
         let (c, rt) = (median(c), median(rt));
         let _ = writeln!(out, "| {label} | {c:.2} | {rt:.1} | {:.1} |", c + rt);
     }
-    Ok(ratio)
+    Ok(ratios)
 }
 
 /// One museum's moving triangles rebuilt three ways on the same frames
@@ -1280,7 +1288,7 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     if o.scenes.iter().any(|s| s.starts_with("museum")) {
         let _ = writeln!(
             builder_md,
-            "\n## Moving objects: fast, refitted and SAH trees\n\nThe museums' moving triangles under each builder (`Context::set_refit`, `Context::set_redefinition_builder`), each sampled frame committed right after the two frames before it, as when the animation plays; same triangles, so the cost moves between commit and render. The three builders take turns frame by frame (the first of them changing from frame to frame), so that the machine's phases fall on all three alike."
+            "\n## Moving objects: fast, refitted and SAH trees\n\nThe museums' moving triangles under each builder (`Context::set_refit`, `Context::set_redefinition_builder`; the BVH rows with `Context::set_accel`), each sampled frame committed right after the two frames before it, as when the animation plays; same triangles, so the cost moves between commit and render. The builders take turns frame by frame (the first of them changing from frame to frame), so that the machine's phases fall on all of them alike."
         );
     }
     for name in o.scenes.iter().filter(|s| s.starts_with("museum")) {
@@ -1318,16 +1326,18 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
             true,
         );
     }
-    for (name, ratio) in &builder_rows {
-        target(
-            &format!(
-                "{name} Whitted render with refitted trees / with trees built afresh (builders table, median of the per-frame ratios)"
-            ),
-            Some(*ratio),
-            1.05,
-            "x",
-            false,
-        );
+    for (name, (kd, bvh)) in &builder_rows {
+        for (what, ratio) in [("kd-trees", kd), ("BVHs", bvh)] {
+            target(
+                &format!(
+                    "{name} Whitted render with refitted {what} / with {what} built afresh (builders table, median of the per-frame ratios)"
+                ),
+                Some(*ratio),
+                1.05,
+                "x",
+                false,
+            );
+        }
     }
     let scal = rows
         .iter()
