@@ -77,10 +77,10 @@ fn aff_header_counts_and_reservations() {
         ("k2.aff", format!("{VIEW}k name {{ rot {MAX_HEADER_COUNT} 0")),
         ("t2.aff", format!("{VIEW}tpa {MAX_HEADER_COUNT} 0")),
     ] {
-        let start = std::time::Instant::now();
+        // NOTE: no clock: the loader reserving for the header's count
+        // first would show as an allocation failure or an abort here.
         let e = error_of(&write(dir.path(), name, text));
         assert_names(&e, &[name, "file ends"]);
-        assert!(start.elapsed().as_secs() < 2, "{name} took {:?}", start.elapsed());
     }
 }
 
