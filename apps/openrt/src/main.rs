@@ -548,11 +548,12 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
             }
             let stats_path = stats.or_else(|| output.as_ref().map(|d| d.join("stats.jsonl")));
-            let mut sink: Box<dyn Write> = match &stats_path {
-                Some(p) => Box::new(std::io::BufWriter::new(
-                    std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
-                )),
-                None => Box::new(std::io::stdout()),
+            let mut sink = match &stats_path {
+                Some(p) => StatsLines::new(
+                    Box::new(std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?),
+                    p.display().to_string(),
+                ),
+                None => StatsLines::new(Box::new(std::io::stdout()), "standard output".into()),
             };
             let s = settings(&player, &quality);
             let renderer = renderer(&mut player, &quality)?;
@@ -563,12 +564,23 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             );
             // One image for the whole run: its buffer is reused.
             let mut img = Image::default();
+            let first = range.start;
+            // A failure names what failed and how many frames were finished
+            // (their images written, their statistics flushed).
+            let done = |f: u32, e: String| {
+                format!(
+                    "{e}; {} frame(s) completed before it (frames {first}..{f}), their statistics in {}",
+                    f - first,
+                    sink_name(stats_path.as_deref())
+                )
+            };
             for f in range {
                 let t = player.time_of(f);
-                let c = player.set_time(t).map_err(|e| e.to_string())?;
-                let (st, net) = render_frame(&mut player, t, &s, &renderer, cluster, &mut img)?;
+                let c = player.set_time(t).map_err(|e| done(f, e.to_string()))?;
+                let (st, net) =
+                    render_frame(&mut player, t, &s, &renderer, cluster, &mut img).map_err(|e| done(f, e))?;
                 if let Some(dir) = &output {
-                    save_png(&dir.join(format!("frame_{f:05}.png")), &img)?;
+                    save_png(&dir.join(format!("frame_{f:05}.png")), &img).map_err(|e| done(f, e))?;
                 }
                 let line = serde_json::json!({
                     "frame": f,
@@ -588,19 +600,45 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                     "instances": c.instances,
                     "distributed": net,
                 });
-                writeln!(sink, "{line}").map_err(|e| e.to_string())?;
+                sink.line(&line).map_err(|e| done(f, e))?;
                 bar.set_message(format!("{:.1} ms/frame", c.total_ms + st.render_ms));
                 bar.inc(1);
             }
             bar.finish();
-            sink.flush().map_err(|e| e.to_string())
+            Ok(())
         }
     }
 }
 
+/// Writes a PNG atomically (`Image::save_png`: a failed write leaves no
+/// truncated file).
 fn save_png(path: &Path, img: &Image) -> Result<(), String> {
-    image::save_buffer(path, &img.to_rgb8(), img.width, img.height, image::ColorType::Rgb8)
-        .map_err(|e| format!("{}: cannot write PNG: {e}", path.display()))
+    img.save_png(path).map_err(|e| e.to_string())
+}
+
+fn sink_name(stats: Option<&Path>) -> String {
+    stats.map_or_else(|| "standard output".into(), |p| p.display().to_string())
+}
+
+/// `play`'s per-frame statistics: one JSON line per frame, flushed as soon
+/// as it is written, so a run that fails later keeps every finished frame's
+/// line.
+struct StatsLines {
+    out: Box<dyn Write>,
+    name: String,
+}
+
+impl StatsLines {
+    fn new(out: Box<dyn Write>, name: String) -> Self {
+        Self { out, name }
+    }
+
+    /// Writes and flushes one line.
+    fn line(&mut self, value: &serde_json::Value) -> Result<(), String> {
+        writeln!(self.out, "{value}")
+            .and_then(|()| self.out.flush())
+            .map_err(|e| format!("{}: cannot write statistics: {e}", self.name))
+    }
 }
 
 #[cfg(test)]

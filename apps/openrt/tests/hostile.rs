@@ -174,3 +174,59 @@ fn the_bart_folder_is_found_from_any_folder_or_named_in_the_error() {
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("nowhere/kitchen/kitchen.aff not found"), "{err}");
 }
+
+#[test]
+fn play_failing_part_way_keeps_every_finished_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("frames");
+    std::fs::create_dir_all(&out).unwrap();
+    // Frame 2's image cannot be put in place (a folder holds its name), as a
+    // full disk would refuse it: frames 0 and 1 must survive whole, with their
+    // statistics, and nothing half-written may be left.
+    std::fs::create_dir(out.join("frame_00002.png")).unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/animated.ron");
+    let (code, err) = openrt(
+        &[
+            "play",
+            scene.to_str().unwrap(),
+            "--frames",
+            "0..5",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("frame_00002.png") && err.contains("2 frame(s) completed"),
+        "{err}"
+    );
+    let stats = std::fs::read_to_string(out.join("stats.jsonl")).unwrap();
+    let frames: Vec<u64> = stats
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["frame"]
+                .as_u64()
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(frames, vec![0, 1], "the finished frames' statistics are flushed");
+    for f in 0..2 {
+        let png = image::open(out.join(format!("frame_{f:05}.png"))).unwrap();
+        assert_eq!((png.width(), png.height()), (32, 24));
+    }
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["frame_00000.png", "frame_00001.png", "frame_00002.png", "stats.jsonl"],
+        "no partial files"
+    );
+}

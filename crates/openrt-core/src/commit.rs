@@ -307,18 +307,17 @@ impl Context {
             !r.geometry.tree.bounds().is_empty() && !inside
         }) {
             let b = r.world_bounds;
-            return Err(CoreError::Limit {
-                call: "commit",
-                what: format!(
-                    "instance {} of object {}: world box {}..{}, largest |coordinate|",
-                    r.id, r.object, b.min, b.max
-                ),
-                value: if b.min.is_finite() && b.max.is_finite() {
-                    b.min.abs().max(b.max.abs()).max_element() as u64
+            return Err(CoreError::InstanceOutOfRange {
+                instance: r.id,
+                object: r.object,
+                min: b.min.to_array(),
+                max: b.max.to_array(),
+                largest: if b.min.is_finite() && b.max.is_finite() {
+                    f64::from(b.min.abs().max(b.max.abs()).max_element())
                 } else {
-                    u64::MAX
+                    f64::INFINITY
                 },
-                limit: MAX_COORDINATE as u64,
+                limit: f64::from(MAX_COORDINATE),
             });
         }
         let t0 = Instant::now();

@@ -542,11 +542,11 @@ impl Context {
             });
         }
         if !within_coordinate_limit(wp) {
-            return Err(CoreError::Limit {
+            return Err(CoreError::CoordinateLimit {
                 call: "vertex",
-                what: format!("position {wp}: largest |coordinate|"),
-                value: wp.abs().max_element() as u64,
-                limit: MAX_COORDINATE as u64,
+                what: format!("position {wp}"),
+                value: f64::from(wp.abs().max_element()),
+                limit: f64::from(MAX_COORDINATE),
             });
         }
         d.vertices.push(Vertex { p: wp, n, uv });

@@ -159,6 +159,40 @@ pub enum CoreError {
         /// The limit it broke (a maximum, or 1 for a minimum of one).
         limit: u64,
     },
+    /// A coordinate beyond [`crate::MAX_COORDINATE`] (a vertex after the
+    /// matrix stack); the value is kept as given, in `f64`.
+    #[error("{call}: {what} has largest |coordinate| {value:e}, outside the limit MAX_COORDINATE = {limit:e}")]
+    CoordinateLimit {
+        /// The call.
+        call: &'static str,
+        /// What was measured.
+        what: String,
+        /// The largest magnitude given (infinite or NaN when not finite).
+        value: f64,
+        /// The limit, [`crate::MAX_COORDINATE`].
+        limit: f64,
+    },
+    /// A commit refused because an instance's world box leaves the coordinate
+    /// range (a large object under a large scale): it could not be hit
+    /// reliably. The instance and its object are named so that a program can
+    /// remove or move the instance and commit again.
+    #[error(
+        "commit: instance {instance} of object {object} has the world box {min:?}..{max:?}, largest |coordinate| {largest:e}, outside the limit MAX_COORDINATE = {limit:e}; remove or move the instance and commit again"
+    )]
+    InstanceOutOfRange {
+        /// The instance refused.
+        instance: InstanceId,
+        /// Its object.
+        object: ObjectId,
+        /// The world box's lower corner.
+        min: [f32; 3],
+        /// The world box's upper corner.
+        max: [f32; 3],
+        /// The box's largest |coordinate| (infinite or NaN when not finite).
+        largest: f64,
+        /// The limit, [`crate::MAX_COORDINATE`].
+        limit: f64,
+    },
     /// A hit given to [`crate::Scene::surface`] that another scene found.
     #[error(
         "surface: the hit (instance {instance}, triangle {prim}) was found in frame {hit_frame}, not in this scene (frame {scene_frame}), or names a triangle it does not have"
@@ -183,6 +217,15 @@ pub enum CoreError {
     #[error("render: {reason}")]
     RenderThread {
         /// What happened, naming the thread.
+        reason: String,
+    },
+    /// A file could not be written (a full disk, a missing folder, no
+    /// permission); the path keeps what it held before.
+    #[error("{}: cannot write: {reason}", path.display())]
+    Write {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The cause.
         reason: String,
     },
     /// The acceleration layer refused the input.

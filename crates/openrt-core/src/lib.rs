@@ -79,6 +79,7 @@ mod embree_backend;
 mod error;
 mod highlight;
 mod ids;
+mod image_file;
 mod instance;
 mod light;
 mod light_quad;
@@ -103,6 +104,7 @@ pub use context::Context;
 pub use embree_backend::EmbreeScene;
 pub use error::CoreError;
 pub use ids::{InstanceId, MaterialId, ObjectId, TextureId};
+pub use image_file::write_atomically;
 pub use instance::{InstanceRecord, MIN_TRANSFORM_CONDITIONING};
 pub use light::{Environment, PointLight};
 pub use limits::{

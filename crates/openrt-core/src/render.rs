@@ -2,6 +2,7 @@
 //! tiles from a shared counter.
 
 use std::panic::AssertUnwindSafe;
+#[cfg(feature = "embree")]
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -171,9 +172,9 @@ pub struct FrameStats {
     pub threads: usize,
 }
 
-struct FrameJob {
-    scene: Arc<Scene>,
-    env: Arc<Environment>,
+struct FrameJob<'a> {
+    scene: &'a Scene,
+    env: &'a Environment,
     cam: CameraRays,
     settings: RenderSettings,
     backend: Backend,
@@ -269,8 +270,8 @@ impl Renderer {
     /// Renders one frame of `scene` seen by `camera`.
     pub fn render(
         &self,
-        scene: &Arc<Scene>,
-        env: &Arc<Environment>,
+        scene: &Scene,
+        env: &Environment,
         camera: &Camera,
         settings: &RenderSettings,
     ) -> Result<(Image, FrameStats), CoreError> {
@@ -288,8 +289,8 @@ impl Renderer {
     /// As [`Renderer::render`]; `image` is left as it was then.
     pub fn render_into(
         &self,
-        scene: &Arc<Scene>,
-        env: &Arc<Environment>,
+        scene: &Scene,
+        env: &Environment,
         camera: &Camera,
         settings: &RenderSettings,
         image: &mut Image,
@@ -319,8 +320,8 @@ impl Renderer {
     /// As [`Renderer::render`]; a tile index out of range is a [`CoreError::Limit`].
     pub fn render_tiles(
         &self,
-        scene: &Arc<Scene>,
-        env: &Arc<Environment>,
+        scene: &Scene,
+        env: &Environment,
         camera: &Camera,
         settings: &RenderSettings,
         only: Option<&[u32]>,
@@ -348,8 +349,8 @@ impl Renderer {
         let list: Option<Vec<u32>> = only.map(<[u32]>::to_vec);
         let n_tiles = list.as_ref().map_or(all as usize, Vec::len);
         let job = FrameJob {
-            scene: Arc::clone(scene),
-            env: Arc::clone(env),
+            scene,
+            env,
             cam,
             settings: *settings,
             backend: self.backend,
@@ -479,9 +480,9 @@ pub fn assemble_into<'a>(
         });
 }
 
-fn render_tiles(job: &FrameJob) -> Vec<TileResult> {
+fn render_tiles(job: &FrameJob<'_>) -> Vec<TileResult> {
     match job.backend {
-        Backend::Kd | Backend::KdSingle => tiles(job, &*job.scene),
+        Backend::Kd | Backend::KdSingle => tiles(job, job.scene),
         #[cfg(feature = "embree")]
         Backend::Embree | Backend::EmbreePacket => {
             let guard = job.embree.read().unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -491,11 +492,11 @@ fn render_tiles(job: &FrameJob) -> Vec<TileResult> {
 }
 
 /// Takes tiles until none is left, tracing with `tracer`; returns them.
-fn tiles<T: Tracer>(job: &FrameJob, tracer: &T) -> Vec<TileResult> {
+fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
     let mut shader = Shader::new(
-        &job.scene,
+        job.scene,
         tracer,
-        &job.env,
+        job.env,
         job.settings.mode,
         job.settings.max_depth,
         job.settings.texture_filter,
@@ -593,7 +594,7 @@ pub const fn packet_block(n: usize) -> (u32, u32) {
 /// as the single-ray queries do, and the shading is the same code.
 fn packet_tile<const N: usize, T: Tracer>(
     shader: &mut Shader<'_, T>,
-    job: &FrameJob,
+    job: &FrameJob<'_>,
     tile: Tile,
     cone: Cone,
     offsets: &[(f32, f32)],

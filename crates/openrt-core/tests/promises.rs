@@ -40,10 +40,28 @@ fn vertices_and_instances_beyond_the_coordinate_limit_are_refused() {
     let id = ctx.gen_object();
     ctx.begin_object(id).unwrap();
     ctx.begin(PrimitiveKind::Triangles).unwrap();
-    for p in [Vec3::new(f32::MAX, 0.0, 0.0), Vec3::splat(MAX_COORDINATE * 2.0)] {
+    for p in [
+        Vec3::new(f32::MAX, 0.0, 0.0),
+        Vec3::splat(MAX_COORDINATE * 2.0),
+        Vec3::new(0.0, -3e38, 0.0),
+    ] {
         let e = ctx.vertex(p).unwrap_err();
-        assert_eq!(limit_of(&e), MAX_COORDINATE as u64);
-        assert!(e.to_string().starts_with("vertex:"), "{e}");
+        match &e {
+            CoreError::CoordinateLimit { call, value, limit, .. } => {
+                assert_eq!(*call, "vertex");
+                // The value as given, not clamped to an integer type.
+                assert_eq!(*value, f64::from(p.abs().max_element()));
+                assert_eq!(*limit, f64::from(MAX_COORDINATE));
+            }
+            other => panic!("expected a coordinate limit, got {other}"),
+        }
+        let text = e.to_string();
+        assert!(text.starts_with("vertex:"), "{text}");
+        assert!(
+            text.contains(&format!("{:e}", f64::from(p.abs().max_element()))),
+            "shows the value: {text}"
+        );
+        assert!(!text.contains("18446744073709551615"), "{text}");
     }
     let _ = ctx.abort_object().unwrap();
     // A big object that is fine alone, and a normal one beside it.
@@ -66,10 +84,26 @@ fn vertices_and_instances_beyond_the_coordinate_limit_are_refused() {
     ctx.load_matrix(Mat4::from_scale(Vec3::splat(1e6))).unwrap();
     let moved = ctx.instantiate(big_obj).unwrap();
     let e = ctx.commit().unwrap_err();
-    assert_eq!(limit_of(&e), MAX_COORDINATE as u64);
     assert!(e.to_string().contains(&moved.to_string()), "names the instance: {e}");
     assert!(Arc::ptr_eq(&ok, &ctx.scene()), "the previous scene stays current");
-    ctx.remove_instance(moved).unwrap();
+    // The refusal names the instance and object in typed fields: a program
+    // removes what it names and commits again.
+    let CoreError::InstanceOutOfRange {
+        instance,
+        object,
+        largest,
+        limit,
+        ..
+    } = e
+    else {
+        panic!("expected an instance out of range, got {e}");
+    };
+    assert_eq!((instance, object), (moved, big_obj));
+    assert!(
+        largest > limit && limit == f64::from(MAX_COORDINATE),
+        "{largest} {limit}"
+    );
+    ctx.remove_instance(instance).unwrap();
     ctx.commit().unwrap();
     // Within the limit, both the big and the normal triangles are hit as
     // the f64 oracle says.
