@@ -158,7 +158,7 @@ fn measure_scene(
                 .iter()
                 .filter(move |&&b| accel == Accel::Kd || matches!(b, Backend::Kd | Backend::KdSingle))
                 .map(move |&b| {
-                    let mut r = Renderer::with_pool(pool.clone());
+                    let mut r = crate::new_renderer(pool.clone());
                     r.set_backend(b);
                     (*t, r)
                 })
@@ -282,7 +282,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
     let bvh_scene = player.ctx().scene();
     let env = player.env();
     let cam = player.camera(t).rays(o.width, o.height).map_err(|e| e.to_string())?;
-    let lanes = PacketWidth::detect().lanes();
+    let lanes = crate::packet_width().lanes();
     let (bw, bh) = openrt_core::packet_block(lanes);
     // Pixel blocks in the renderer's order, each padded to full lanes.
     let mut primary = Vec::new();
@@ -348,7 +348,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
         // order, lights in order within a block), as the renderer traces
         // them: towards the light.
         let lights: Vec<Vec3> = env.lights.iter().map(|l| l.position).collect();
-        let packet_of = |scene: &openrt_core::Scene| match PacketWidth::detect() {
+        let packet_of = |scene: &openrt_core::Scene| match crate::packet_width() {
             PacketWidth::W4 => packets::<4>(scene, rays, closest, &lights),
             PacketWidth::W8 => packets::<8>(scene, rays, closest, &lights),
             PacketWidth::W16 => packets::<16>(scene, rays, closest, &lights),
@@ -374,7 +374,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
                     })
                     .count()
             });
-            let pk = time(&mut || match PacketWidth::detect() {
+            let pk = time(&mut || match crate::packet_width() {
                 PacketWidth::W4 => embree_packets::<4>(&em, rays, closest),
                 PacketWidth::W8 => embree_packets::<8>(&em, rays, closest),
                 PacketWidth::W16 => embree_packets::<16>(&em, rays, closest),
@@ -473,7 +473,7 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
     let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
     let threads = *o.threads.iter().max().unwrap_or(&1);
     player.ctx_mut().set_threads(threads).map_err(|e| e.to_string())?;
-    let r = Renderer::with_pool(player.ctx_mut().pool().map_err(|e| e.to_string())?);
+    let r = crate::new_renderer(player.ctx_mut().pool().map_err(|e| e.to_string())?);
     let f = player.frames() / 2;
     let t = player.time_of(f);
     player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
@@ -687,7 +687,7 @@ fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(f64, f64)
             .ctx_mut()
             .set_threads(*o.threads.iter().max().unwrap_or(&1))
             .map_err(|e| e.to_string())?;
-        let r = Renderer::with_pool(player.ctx_mut().pool().map_err(|e| e.to_string())?);
+        let r = crate::new_renderer(player.ctx_mut().pool().map_err(|e| e.to_string())?);
         player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
         players.push((player, r));
     }
@@ -1109,7 +1109,7 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     let _ = writeln!(
         md,
         "\n## Ray packets against single rays, and against Embree\n\nThe same frames through every backend of this build: `kd` (packets of {} lanes on this CPU), `kd-single`, and with `--features embree` Embree 3 one ray at a time (`embree`: rtcIntersect1/rtcOccluded1) and in packets of the same width (`embree-packet`: rtcIntersect4/8/16, rtcOccluded4/8/16), one Embree scene per object (HIGH quality, LOW for redefined objects) under a top-level scene committed every frame, its build counted in its render time. The kd images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`); Embree's differ only by its own hits. fps = 1000 / (commit + render). `bvh` and `bvh-single`: the kd backends' packets and single rays with 4-wide BVHs under the instances (`--accel bvh`), the same bytes.\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single | embree fps | embree-packet fps | kd / embree-packet | goal kd >= embree-packet | bvh fps | bvh-single fps | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---|",
-        PacketWidth::detect().lanes()
+        crate::packet_width().lanes()
     );
     let find = |r: &Row, b: &str| {
         rows.iter()
@@ -1166,7 +1166,7 @@ pub fn run(o: &BenchOptions) -> Result<(), String> {
     }
     let mut kind_rows: Vec<(String, KindRow)> = Vec::new();
     if !o.scenes.is_empty() {
-        let lanes = PacketWidth::detect().lanes();
+        let lanes = crate::packet_width().lanes();
         let _ = writeln!(
             md,
             "\nRay queries alone, per scene (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit (the kd and BVH backends try each light's last occluder first, as in a frame; Embree's any-hit query names no occluder). `bvh-single` and `bvh`: the same queries with 4-wide BVHs under the instances (`--accel bvh`); goal: `bvh` >= `embree-packet`.\n\n| scene | rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal 3x | embree Mrays/s | embree-packet Mrays/s | kd / embree-packet | bvh-single Mrays/s | bvh Mrays/s | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---|"

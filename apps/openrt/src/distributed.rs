@@ -395,7 +395,7 @@ impl Cluster {
         let mut replica = Context::new();
         // One pool: the replica's commit and the tiles.
         replica.set_threads(threads).map_err(|e| e.to_string())?;
-        let mut renderer = Renderer::with_pool(replica.pool().map_err(|e| e.to_string())?);
+        let mut renderer = crate::new_renderer(replica.pool().map_err(|e| e.to_string())?);
         let root = self.world.process_at_rank(0);
         let fault = std::env::var("OPENRT_MPI_FAULT").ok();
         let mut env: Option<std::sync::Arc<Environment>> = None;

@@ -236,6 +236,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    openrt_accel::set_frustum_culling(std::env::var_os(NO_FRUSTUM_ENV).is_none());
     #[cfg(feature = "mpi")]
     if let Some(cluster) = distributed::Cluster::start(cli.mpi_root_renders, cli.mpi_tiles == "static") {
         return run_mpi(cli, &cluster);
@@ -355,7 +356,7 @@ fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
 /// (`commit_threads` sized it): one pool commits and renders.
 fn renderer(player: &mut ScenePlayer, q: &Quality) -> Result<Renderer, String> {
     let pool = player.ctx_mut().pool().map_err(|e| format!("--threads: {e}"))?;
-    let mut r = Renderer::with_pool(pool);
+    let mut r = new_renderer(pool);
     r.set_backend(q.backend.backend);
     Ok(r)
 }
@@ -363,8 +364,33 @@ fn renderer(player: &mut ScenePlayer, q: &Quality) -> Result<Renderer, String> {
 /// A renderer of its own pool (`--threads`), for a run that opens its scene itself.
 fn own_renderer(q: &Quality) -> Result<Renderer, String> {
     let mut r = Renderer::new(threads(q)).map_err(|e| format!("--threads: {e}"))?;
+    r.set_packet_width(packet_width());
     r.set_backend(q.backend.backend);
     Ok(r)
+}
+
+/// Environment variable that forces the packet width (4, 8 or 16) of every
+/// renderer the CLI makes; the library itself reads no environment.
+pub(crate) const LANES_ENV: &str = "OPENRT_PACKET_LANES";
+
+/// Environment variable that turns frustum culling off (A/B runs: the
+/// images are the same bytes either way).
+pub(crate) const NO_FRUSTUM_ENV: &str = "OPENRT_NO_FRUSTUM";
+
+/// The packet width: [`LANES_ENV`] when it names one (4, 8 or 16), else
+/// the CPU's.
+pub(crate) fn packet_width() -> openrt_accel::PacketWidth {
+    std::env::var(LANES_ENV)
+        .ok()
+        .and_then(|v| openrt_accel::PacketWidth::parse(&v))
+        .unwrap_or_else(openrt_accel::PacketWidth::detect)
+}
+
+/// A renderer on `pool` with the CLI's packet width ([`packet_width`]).
+pub(crate) fn new_renderer(pool: openrt_core::ThreadPool) -> Renderer {
+    let mut r = Renderer::with_pool(pool);
+    r.set_packet_width(packet_width());
+    r
 }
 
 fn threads(q: &Quality) -> usize {

@@ -7,6 +7,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// The CLI's variables (the library reads no environment).
+const LANES_ENV: &str = "OPENRT_PACKET_LANES";
+const NO_FRUSTUM_ENV: &str = "OPENRT_NO_FRUSTUM";
+
 fn render(dir: &Path, tag: &str, backend: &str, lanes: Option<&str>, mode: &str, frustum: bool) -> Vec<u8> {
     let out = dir.join(format!("{tag}.png"));
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_openrt"));
@@ -23,13 +27,13 @@ fn render(dir: &Path, tag: &str, backend: &str, lanes: Option<&str>, mode: &str,
     ])
     .args(["--backend", backend, "-o"])
     .arg(&out);
-    cmd.env_remove(openrt_accel::LANES_ENV);
-    cmd.env_remove(openrt_accel::NO_FRUSTUM_ENV);
+    cmd.env_remove(LANES_ENV);
+    cmd.env_remove(NO_FRUSTUM_ENV);
     if !frustum {
-        cmd.env(openrt_accel::NO_FRUSTUM_ENV, "1");
+        cmd.env(NO_FRUSTUM_ENV, "1");
     }
     if let Some(l) = lanes {
-        cmd.env(openrt_accel::LANES_ENV, l);
+        cmd.env(LANES_ENV, l);
     }
     let status = cmd.status().expect("openrt runs");
     assert!(status.success(), "{tag}: openrt failed");
@@ -59,8 +63,7 @@ fn every_forced_width_gives_the_single_ray_bytes() {
                 );
                 assert!(
                     got == want,
-                    "{mode}: {} = {lanes}, frustum culling {frustum}, gives other bytes",
-                    openrt_accel::LANES_ENV
+                    "{mode}: {LANES_ENV} = {lanes}, frustum culling {frustum}, gives other bytes"
                 );
                 // The same packets over BVHs (`--backend bvh`: kd packets, `--accel bvh`).
                 let bvh = render(

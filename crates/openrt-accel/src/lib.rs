@@ -57,10 +57,10 @@ pub use kd::sah_params::{DEFAULT_BINNED_ABOVE, SahParams, default_max_depth};
 pub use kd::traverse::traverse;
 pub use kd::tree::{BuilderKind, KdTree, TreeStats};
 pub use packet::boxes::{BOX_SLACK, PacketBoxes, ray_reaches};
-pub use packet::frustum::{FRUSTUM_MARGIN, Frustum, NO_FRUSTUM_ENV};
+pub use packet::frustum::{FRUSTUM_MARGIN, Frustum, frustum_culling, set_frustum_culling};
 pub use packet::interval::PacketInterval;
 pub use packet::traverse::traverse_packet;
-pub use packet::width::{LANES_ENV, MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
+pub use packet::width::{MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
 #[cfg(feature = "embree")]
 pub use peers::embree::{EmbreeMesh, EmbreeTwoLevel, embree_medium_build_secs};
 pub use testing::{meshgen, oracle};

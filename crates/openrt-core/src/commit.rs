@@ -207,7 +207,10 @@ impl Context {
                 // builder gets a copy (a memcpy, ~1% of a fast build).
                 let tris = mesh.triangles.clone();
                 let n = tris.len();
-                let fail = self.fail_builds.as_mut();
+                #[cfg(test)]
+                let fail = self.hooks.fail_builds.as_mut();
+                #[cfg(not(test))]
+                let fail: Option<&mut usize> = None;
                 let prev = slot.geometry.as_ref().filter(|_| self.refit).map(|g| &g.tree);
                 // A build that can use the pool's threads runs on them; a
                 // smaller one runs here (the same tree, without waking the pool).
@@ -395,7 +398,10 @@ impl Context {
         promote_after: Option<u32>,
         stats: &mut CommitStats,
     ) {
-        let fail = self.fail_promotions;
+        #[cfg(test)]
+        let fail = self.hooks.fail_promotions;
+        #[cfg(not(test))]
+        let fail = false;
         let slots = promotion_slots(self.bsp_builder.threads());
         let mut in_flight = self
             .objects
@@ -537,7 +543,7 @@ mod tests {
         // Redefine both; the second build fails.
         tri(&mut ctx, a, 2.0);
         tri(&mut ctx, b, 3.0);
-        ctx.fail_builds = Some(1);
+        ctx.hooks.fail_builds = Some(1);
         let e = ctx.commit().unwrap_err();
         assert!(matches!(e, CoreError::Accel { call: "commit", .. }), "{e}");
         assert!(
@@ -551,7 +557,7 @@ mod tests {
         );
         assert_eq!(ctx.objects[0].version, 1);
         // Without the failure, the same commit applies both definitions.
-        ctx.fail_builds = None;
+        ctx.hooks.fail_builds = None;
         let stats = ctx.commit().unwrap();
         assert_eq!(stats.builds.len(), 2);
         assert_eq!(t_at(&ctx, 0.0), Some(8.0));
@@ -568,7 +574,7 @@ mod tests {
         ctx.commit().unwrap();
         tri(&mut ctx, a, 0.5); // redefined: fast tree
         ctx.commit().unwrap();
-        ctx.fail_promotions = true;
+        ctx.hooks.fail_promotions = true;
         let started = ctx.commit().unwrap();
         assert_eq!(started.promotions_started, vec![a]);
         ctx.wait_for_promotions();
@@ -590,7 +596,7 @@ mod tests {
         assert_eq!(ctx.object_builder(a).unwrap(), Some(openrt_accel::BuilderKind::Fast));
         assert_eq!(t_at(&ctx, 0.0), Some(9.5), "the fast tree stays in use");
         // A redefinition clears the failure and promotes again.
-        ctx.fail_promotions = false;
+        ctx.hooks.fail_promotions = false;
         tri(&mut ctx, a, 0.0);
         ctx.commit().unwrap();
         assert!(ctx.promotion_failure(a).unwrap().is_none());

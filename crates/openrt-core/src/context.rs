@@ -169,10 +169,9 @@ pub struct Context {
     /// Keeps the top-level build's scratch memory from frame to frame; runs
     /// on `pool`.
     pub(crate) bsp_builder: openrt_accel::BspBuilder,
-    /// Tests: object builds left before an injected build failure.
-    pub(crate) fail_builds: Option<usize>,
-    /// Tests: background builds fail.
-    pub(crate) fail_promotions: bool,
+    /// Failures injected by the unit tests (absent from other builds).
+    #[cfg(test)]
+    pub(crate) hooks: TestHooks,
     /// What changed since the last commit, when recording ([`Context::record_changes`]).
     pub(crate) change_log: Option<crate::changes::ChangeLog>,
 }
@@ -212,8 +211,8 @@ impl Context {
             accel: crate::Accel::default(),
             pool,
             bsp_builder,
-            fail_builds: None,
-            fail_promotions: false,
+            #[cfg(test)]
+            hooks: TestHooks::default(),
             change_log: None,
         }
     }
@@ -832,4 +831,15 @@ impl Context {
     pub(crate) fn ensure_not_defining(&self, call: &'static str) -> Result<(), CoreError> {
         self.no_definition(call)
     }
+}
+
+/// Failures the unit tests inject into a commit; compiled into test builds
+/// only, so the production [`Context`] carries no hooks.
+#[cfg(test)]
+#[derive(Default)]
+pub(crate) struct TestHooks {
+    /// Object builds left before an injected build failure.
+    pub(crate) fail_builds: Option<usize>,
+    /// Background builds fail.
+    pub(crate) fail_promotions: bool,
 }

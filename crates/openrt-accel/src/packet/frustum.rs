@@ -32,13 +32,27 @@ pub const FRUSTUM_MARGIN: f32 = 1e-4;
 /// A lane mask with every lane set.
 const ALL: f32x4 = f32x4::new([f32::from_bits(u32::MAX); 4]);
 
-/// Environment variable that turns frustum culling off.
-pub const NO_FRUSTUM_ENV: &str = "OPENRT_NO_FRUSTUM";
+/// Whether packets make frusta (see [`set_frustum_culling`]).
+static CULLING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(true);
 
-/// `true` when [`NO_FRUSTUM_ENV`] is set (read once).
+/// Turns frustum culling on or off for every packet walk of the process (on
+/// by default). The answers are the same bits either way, only the speed
+/// changes: this is the switch of A/B measurements (the CLI sets it from
+/// `OPENRT_NO_FRUSTUM`). It is process-wide because frusta are made deep
+/// inside both levels' packet walks of both object structures.
+pub fn set_frustum_culling(on: bool) {
+    CULLING.store(on, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Whether frustum culling is on ([`set_frustum_culling`]).
+#[must_use]
+pub fn frustum_culling() -> bool {
+    CULLING.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+#[inline]
 fn off() -> bool {
-    static OFF: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *OFF.get_or_init(|| std::env::var_os(NO_FRUSTUM_ENV).is_some())
+    !frustum_culling()
 }
 
 /// The rectangle of a packet's rays seen from their shared origin. Made
@@ -74,9 +88,8 @@ pub struct Frustum {
 impl Frustum {
     /// The frustum of the `lanes` of `rays`: `None` unless they share their
     /// origin bit for bit and point the same way along one axis, where
-    /// every direction component is finite; `None` too when the environment
-    /// variable [`NO_FRUSTUM_ENV`] is set (A/B runs: the answers are the
-    /// same either way).
+    /// every direction component is finite; `None` too when culling is off
+    /// ([`set_frustum_culling`]; the answers are the same either way).
     #[must_use]
     pub fn new<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
         if off() || lanes == 0 {

@@ -19,9 +19,6 @@ use crate::geom::ray::Ray;
 /// Widest packet any kernel is instantiated for (one AVX-512 register of `f32`).
 pub const MAX_LANES: usize = 16;
 
-/// Environment variable that overrides the packet width (4, 8 or 16).
-pub const LANES_ENV: &str = "OPENRT_PACKET_LANES";
-
 /// The packet widths the kernels are instantiated for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PacketWidth {
@@ -56,19 +53,18 @@ impl PacketWidth {
     }
 
     /// The width for this CPU, detected once: 16 lanes with AVX-512, 8 with
-    /// AVX2, else 4. [`LANES_ENV`] overrides it (an unknown value is ignored
-    /// with the detected width kept).
+    /// AVX2, else 4. A renderer takes another with `set_packet_width`.
     #[must_use]
     pub fn detect() -> Self {
         static WIDTH: OnceLock<PacketWidth> = OnceLock::new();
-        *WIDTH.get_or_init(|| Self::from_env_value(std::env::var(LANES_ENV).ok().as_deref()).unwrap_or_else(Self::cpu))
+        *WIDTH.get_or_init(Self::cpu)
     }
 
-    /// The width a value of [`LANES_ENV`] asks for: `4`, `8` or `16`
-    /// (surrounding blanks allowed); `None` for no value or any other.
+    /// The width a setting names: `4`, `8` or `16` (surrounding blanks
+    /// allowed); `None` for any other text.
     #[must_use]
-    pub fn from_env_value(value: Option<&str>) -> Option<Self> {
-        value.and_then(|v| v.trim().parse().ok()).and_then(Self::from_lanes)
+    pub fn parse(value: &str) -> Option<Self> {
+        value.trim().parse().ok().and_then(Self::from_lanes)
     }
 
     /// The widest width the CPU's vector registers hold.
@@ -186,12 +182,12 @@ mod tests {
             assert!(w.lanes() <= MAX_LANES);
         }
         assert_eq!(PacketWidth::from_lanes(5), None);
-        assert_eq!(PacketWidth::from_env_value(Some(" 8 ")), Some(PacketWidth::W8));
-        assert_eq!(PacketWidth::from_env_value(Some("4")), Some(PacketWidth::W4));
-        for bad in [None, Some(""), Some("12"), Some("avx"), Some("-4")] {
-            assert_eq!(PacketWidth::from_env_value(bad), None, "{bad:?}");
+        assert_eq!(PacketWidth::parse(" 8 "), Some(PacketWidth::W8));
+        assert_eq!(PacketWidth::parse("4"), Some(PacketWidth::W4));
+        for bad in ["", "12", "avx", "-4"] {
+            assert_eq!(PacketWidth::parse(bad), None, "{bad:?}");
         }
-        assert!(PacketWidth::detect().lanes() >= 4);
+        assert_eq!(PacketWidth::detect(), PacketWidth::cpu());
     }
 
     #[test]
