@@ -9,10 +9,8 @@ use glam::Vec3;
 use openrt_accel::oracle::BruteForce;
 use openrt_accel::{BuilderKind, Hit};
 use openrt_accel::{PacketWidth, Ray};
-use openrt_core::{
-    Accel, Backend, Image, OccluderHint, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool,
-    first_hit_shadow_ray,
-};
+use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
+use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool};
 use openrt_scene::ScenePlayer;
 
 /// Options of a benchmark run.
@@ -283,7 +281,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
     let env = player.env();
     let cam = player.camera(t).rays(o.width, o.height).map_err(|e| e.to_string())?;
     let lanes = crate::packet_width().lanes();
-    let (bw, bh) = openrt_core::packet_block(lanes);
+    let (bw, bh) = openrt_core::kernels::packet_block(lanes);
     // Pixel blocks in the renderer's order, each padded to full lanes.
     let mut primary = Vec::new();
     for by in (0..o.height).step_by(bh as usize) {

@@ -9,8 +9,9 @@ use std::sync::Arc;
 
 use openrt_accel::{BuilderKind, EmbreeTwoLevel, Ray, Triangle};
 
+use crate::occluder_hint::OccluderHint;
 use crate::tracer::Tracer;
-use crate::{CoreError, ObjectGeometry, OccluderHint, Scene, SceneHit};
+use crate::{CoreError, ObjectGeometry, Scene, SceneHit};
 
 /// The Embree scene kept in step with the committed frames: the renderer's
 /// Embree backends, and the bench's ray-kind figures.

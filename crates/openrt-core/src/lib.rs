@@ -96,7 +96,7 @@ mod shade;
 mod texture;
 mod tracer;
 
-pub use camera::{Camera, CameraRays};
+pub use camera::Camera;
 pub use changes::{ChangeSet, InstanceChange, MAX_SLOT_GROWTH, MaterialData, MeshData, ObjectChange, TextureData};
 pub use commit::{BuildRecord, CommitStats, MAX_PROMOTIONS_IN_FLIGHT};
 pub use context::Context;
@@ -114,13 +114,35 @@ pub use limits::{
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{Accel, ObjectGeometry, ObjectMesh, ObjectTree, ShadingData};
-pub use occluder_hint::{HINT_MARGIN, HINT_MAX_REST, OccluderHint};
 pub use pool::ThreadPool;
 pub use primitive::PrimitiveKind;
 pub use render::{
-    Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, assemble_into, packet_block,
-    sample_offset, tile_count,
+    Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, assemble_into, tile_count,
 };
 pub use scene::{Scene, SceneHit, Surface};
-pub use shade::{OFFSET_ULPS, RayCounts, RenderMode, first_hit_shadow_ray, offset_ray_origin};
+pub use shade::{RayCounts, RenderMode};
 pub use texture::{Texture, TextureFilter};
+
+/// What a program using the API needs, in one import:
+/// `use openrt_core::prelude::*;` (with `glam`'s vector and matrix types and
+/// the acceleration layer's [`Ray`](openrt_accel::Ray) for ray queries).
+pub mod prelude {
+    pub use crate::{
+        Accel, Backend, Camera, Context, CoreError, Environment, Image, InstanceId, Material, MaterialId, ObjectId,
+        PointLight, PrimitiveKind, RenderMode, RenderSettings, Renderer, Scene, SceneHit, Surface, Texture,
+        TextureFilter, TextureId,
+    };
+    pub use glam::{Mat4, Vec2, Vec3};
+    pub use openrt_accel::Ray;
+}
+
+/// The renderer's building blocks, public for the tools and tests that
+/// measure or replay them (the bench, the ray-query probe, the backend
+/// tests) and not needed to use the API: the shading offsets, the last
+/// occluder of each light, a frame's pixel blocks and sample positions.
+pub mod kernels {
+    pub use crate::camera::CameraRays;
+    pub use crate::occluder_hint::{HINT_MARGIN, HINT_MAX_REST, OccluderHint};
+    pub use crate::render::{packet_block, sample_offset};
+    pub use crate::shade::{OFFSET_ULPS, first_hit_shadow_ray, offset_ray_origin};
+}

@@ -12,10 +12,11 @@ use openrt_accel::{PacketWidth, Ray, lanes_of};
 use parking_lot::Mutex;
 
 use crate::camera::CameraRays;
+use crate::occluder_hint::OccluderHint;
 use crate::shade::{Cone, ShadedBlock, Shader};
 use crate::tracer::Tracer;
 use crate::{
-    Camera, CoreError, Environment, OccluderHint, RayCounts, RenderMode, Scene, TextureFilter, ThreadPool, check_depth,
+    Camera, CoreError, Environment, RayCounts, RenderMode, Scene, TextureFilter, ThreadPool, check_depth,
     check_image_size, check_spp,
 };
 

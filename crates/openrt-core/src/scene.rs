@@ -308,7 +308,7 @@ impl Scene {
     /// hint rests after tries that settled no lane ([`HINT_MAX_REST`]).
     /// The same answer whatever the hint holds.
     ///
-    /// [`HINT_MAX_REST`]: crate::HINT_MAX_REST
+    /// [`HINT_MAX_REST`]: crate::kernels::HINT_MAX_REST
     #[must_use]
     pub fn occluded_packet_toward_hinted<const N: usize>(
         &self,

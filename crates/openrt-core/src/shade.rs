@@ -5,8 +5,9 @@ use openrt_accel::{Ray, lanes_of, sign_groups};
 
 use crate::highlight::highlight_powers;
 use crate::light_quad::{LightQuad, light_terms};
+use crate::occluder_hint::OccluderHint;
 use crate::tracer::Tracer;
-use crate::{Environment, OccluderHint, PointLight, Scene, SceneHit, Surface, TextureFilter};
+use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
 /// What a frame computes per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]

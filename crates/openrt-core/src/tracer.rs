@@ -5,7 +5,8 @@
 
 use openrt_accel::Ray;
 
-use crate::{OccluderHint, Scene, SceneHit};
+use crate::occluder_hint::OccluderHint;
+use crate::{Scene, SceneHit};
 
 /// A traversal backend for the shader.
 pub(crate) trait Tracer: Sync {

@@ -9,7 +9,7 @@
 //! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single]`
 use glam::Vec3;
 use openrt_accel::Ray;
-use openrt_core::{OccluderHint, first_hit_shadow_ray};
+use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
 use openrt_scene::ScenePlayer;
 use std::time::Instant;
 fn main() {
@@ -25,7 +25,7 @@ fn main() {
     let scene = player.ctx().scene();
     let (w, h) = (640u32, 480u32);
     let cam = player.camera(t).rays(w, h).unwrap();
-    let (bw, bh) = openrt_core::packet_block(16);
+    let (bw, bh) = openrt_core::kernels::packet_block(16);
     let mut primary = Vec::new();
     for by in (0..h).step_by(bh as usize) {
         for bx in (0..w).step_by(bw as usize) {

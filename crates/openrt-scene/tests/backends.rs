@@ -16,10 +16,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use openrt_accel::{PacketWidth, Ray, lanes_mask};
-use openrt_core::{
-    Accel, Backend, Camera, Environment, HINT_MARGIN, OccluderHint, RenderMode, RenderSettings, Renderer, Scene,
-    SceneHit, offset_ray_origin,
-};
+use openrt_core::kernels::{HINT_MARGIN, OccluderHint, offset_ray_origin};
+use openrt_core::{Accel, Backend, Camera, Environment, RenderMode, RenderSettings, Renderer, Scene, SceneHit};
 use openrt_scene::ScenePlayer;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};

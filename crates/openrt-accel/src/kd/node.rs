@@ -35,7 +35,7 @@ pub(crate) const fn too_many_nodes() -> crate::error::AccelError {
 ///   and `a` the offset of the leaf's list in the tree's primitive index array.
 ///
 /// Builders emit every empty cell as an empty leaf; object trees then drop
-/// them ([`elide_empty_leaves`]) so that traversal never steps into one.
+/// them (`elide_empty_leaves`) so that traversal never steps into one.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C)]
 pub struct KdNode {

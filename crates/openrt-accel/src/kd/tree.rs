@@ -378,7 +378,7 @@ impl KdTree {
     /// lanes that found a closer hit.
     ///
     /// Lanes that share direction signs walk the tree as a packet
-    /// ([`crate::packet::traverse`]); each lane tests its leaves' triangles
+    /// ([`crate::traverse_packet`]); each lane tests its leaves' triangles
     /// with the scalar kernel's exact arithmetic.
     pub fn intersect_packet<const N: usize>(
         &self,

@@ -174,7 +174,7 @@ impl Frustum {
     }
 
     /// `true` for the frustum of rays leaving one origin (primary rays),
-    /// whose triangle test ([`Frustum::rejects`]) is exact.
+    /// whose triangle test (`Frustum::rejects`) is exact.
     #[must_use]
     pub fn is_shared_origin(&self) -> bool {
         self.shared_origin

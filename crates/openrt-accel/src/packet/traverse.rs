@@ -1,5 +1,5 @@
 //! Front-to-back kd-tree traversal of a ray packet, shared by object trees
-//! and the top-level instance tree: the scalar walk of [`crate::kd::traverse`]
+//! and the top-level instance tree: the scalar walk of [`crate::traverse`]
 //! made lane-parallel, one node load and one decision per step for the
 //! whole packet.
 //!
@@ -11,7 +11,7 @@
 //! NOTE: every lane makes exactly the decisions of its scalar walk, in the
 //! same arithmetic (the split distance, the `BOUND` widening, the interval
 //! updates and the pop test), and meets its leaves in the same order, so a
-//! lane's hits are bit-identical to [`crate::kd::traverse`]'s (tested against
+//! lane's hits are bit-identical to [`crate::traverse`]'s (tested against
 //! it). One care: a lane that the scalar walk sends to the far child alone
 //! goes there at once, without the pop test against its closest hit; here it
 //! waits on the stack behind the near subtree, so its entry carries it in an
@@ -56,9 +56,9 @@ fn bits<const N: usize>(f: impl Fn(usize) -> bool) -> u32 {
 /// finished.
 ///
 /// Lanes that share direction signs walk together; lanes with a zero
-/// direction component walk alone through [`crate::kd::traverse`]. For each lane
+/// direction component walk alone through [`crate::traverse`]. For each lane
 /// the leaves met, their order and the closest distances seen are those of
-/// [`crate::kd::traverse`] on that lane's ray alone.
+/// [`crate::traverse`] on that lane's ray alone.
 pub fn traverse_packet<const N: usize, L>(
     nodes: &[KdNode],
     rays: &[Ray; N],

@@ -247,7 +247,7 @@ impl AffScene {
     /// built by hand.
     ///
     /// # Errors
-    /// [`SceneError::Invalid`] naming the first broken index.
+    /// [`crate::SceneError::Invalid`] naming the first broken index.
     pub fn validate(&self) -> Result<(), crate::SceneError> {
         let bad = |what: String| {
             Err(crate::SceneError::Invalid {
