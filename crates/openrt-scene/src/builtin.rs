@@ -1,4 +1,4 @@
-//! The built-in default scene (the same text as `scenes/room.ron`).
+//! The built-in default scene (`builtin/room.ron`; `scenes/room.ron` links to it).
 
 use std::path::Path;
 
@@ -6,7 +6,7 @@ use crate::{LoadedScene, SceneError, load_ron_str};
 
 /// RON text of the default scene: a room with a mirror sphere, a glass
 /// sphere and a box, lit by two lights; it needs no texture files.
-pub const DEFAULT_SCENE_RON: &str = include_str!("../../../scenes/room.ron");
+pub const DEFAULT_SCENE_RON: &str = include_str!("../builtin/room.ron");
 
 /// Builds the default scene.
 pub fn default_scene() -> Result<LoadedScene, SceneError> {
