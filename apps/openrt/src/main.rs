@@ -563,77 +563,96 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             output,
             stats,
             quality,
-        } => {
-            let mut player = open_scene(Some(&scene), strict)?;
-            commit_threads(&mut player, &quality)?;
-            if cluster.is_some() {
-                player.ctx_mut().record_changes();
-            }
-            let range = frame_range(frames.as_deref(), player.frames())?;
-            if let Some(dir) = &output {
-                std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-            }
-            let stats_path = stats.or_else(|| output.as_ref().map(|d| d.join("stats.jsonl")));
-            let mut sink = match &stats_path {
-                Some(p) => StatsLines::new(
-                    Box::new(std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?),
-                    p.display().to_string(),
-                ),
-                None => StatsLines::new(Box::new(std::io::stdout()), "standard output".into()),
-            };
-            let s = settings(&player, &quality);
-            let renderer = renderer(&mut player, &quality)?;
-            let bar = ProgressBar::new(u64::from(range.end - range.start));
-            bar.set_style(
-                ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta} {msg}")
-                    .map_err(|e| e.to_string())?,
-            );
-            // One image for the whole run: its buffer is reused.
-            let mut img = Image::default();
-            let first = range.start;
-            // A failure names what failed and how many frames were finished
-            // (their images written, their statistics flushed).
-            let done = |f: u32, e: String| {
-                format!(
-                    "{e}; {} frame(s) completed before it (frames {first}..{f}), their statistics in {}",
-                    f - first,
-                    sink_name(stats_path.as_deref())
-                )
-            };
-            for f in range {
-                let t = player.time_of(f);
-                let c = player.set_time(t).map_err(|e| done(f, e.to_string()))?;
-                let (st, net) =
-                    render_frame(&mut player, t, &s, &renderer, cluster, &mut img).map_err(|e| done(f, e))?;
-                if let Some(dir) = &output {
-                    save_png(&dir.join(format!("frame_{f:05}.png")), &img).map_err(|e| done(f, e))?;
-                }
-                let line = serde_json::json!({
-                    "frame": f,
-                    "time": t,
-                    "commit_ms": c.total_ms,
-                    "toplevel_ms": c.toplevel_ms,
-                    "toplevel_reused": c.toplevel_reused,
-                    "fast_builds": c.build_count(BuilderKind::Fast),
-                    "fast_build_ms": c.build_ms(BuilderKind::Fast),
-                    "sah_builds": c.build_count(BuilderKind::Sah),
-                    "sah_build_ms": c.build_ms(BuilderKind::Sah),
-                    "promotions_started": c.promotions_started.len(),
-                    "promotions_swapped": c.promotions_swapped.len(),
-                    "render_ms": st.render_ms,
-                    "mrays_per_s": st.mrays_per_s,
-                    "rays": {"primary": st.rays.primary, "shadow": st.rays.shadow, "reflection": st.rays.reflection, "refraction": st.rays.refraction},
-                    "instances": c.instances,
-                    "distributed": net,
-                });
-                sink.line(&line).map_err(|e| done(f, e))?;
-                bar.set_message(format!("{:.1} ms/frame", c.total_ms + st.render_ms));
-                bar.inc(1);
-            }
-            bar.finish();
-            Ok(())
-        }
+        } => play(
+            &scene,
+            frames.as_deref(),
+            output.as_deref(),
+            stats,
+            &quality,
+            strict,
+            cluster,
+        ),
     }
+}
+
+/// `openrt play`: frames as PNGs (written atomically) and one statistics line
+/// per frame (flushed as written); a failure says how many frames finished.
+fn play(
+    scene: &Path,
+    frames: Option<&str>,
+    output: Option<&Path>,
+    stats: Option<PathBuf>,
+    quality: &Quality,
+    strict: bool,
+    cluster: Option<&Cluster>,
+) -> Result<(), String> {
+    let mut player = open_scene(Some(scene), strict)?;
+    commit_threads(&mut player, quality)?;
+    if cluster.is_some() {
+        player.ctx_mut().record_changes();
+    }
+    let range = frame_range(frames, player.frames())?;
+    if let Some(dir) = &output {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    let stats_path = stats.or_else(|| output.as_ref().map(|d| d.join("stats.jsonl")));
+    let mut sink = match &stats_path {
+        Some(p) => StatsLines::new(
+            Box::new(std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?),
+            p.display().to_string(),
+        ),
+        None => StatsLines::new(Box::new(std::io::stdout()), "standard output".into()),
+    };
+    let s = settings(&player, quality);
+    let renderer = renderer(&mut player, quality)?;
+    let bar = ProgressBar::new(u64::from(range.end - range.start));
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta} {msg}")
+            .map_err(|e| e.to_string())?,
+    );
+    // One image for the whole run: its buffer is reused.
+    let mut img = Image::default();
+    let first = range.start;
+    // A failure names what failed and how many frames were finished
+    // (their images written, their statistics flushed).
+    let done = |f: u32, e: String| {
+        format!(
+            "{e}; {} frame(s) completed before it (frames {first}..{f}), their statistics in {}",
+            f - first,
+            sink_name(stats_path.as_deref())
+        )
+    };
+    for f in range {
+        let t = player.time_of(f);
+        let c = player.set_time(t).map_err(|e| done(f, e.to_string()))?;
+        let (st, net) = render_frame(&mut player, t, &s, &renderer, cluster, &mut img).map_err(|e| done(f, e))?;
+        if let Some(dir) = &output {
+            save_png(&dir.join(format!("frame_{f:05}.png")), &img).map_err(|e| done(f, e))?;
+        }
+        let line = serde_json::json!({
+            "frame": f,
+            "time": t,
+            "commit_ms": c.total_ms,
+            "toplevel_ms": c.toplevel_ms,
+            "toplevel_reused": c.toplevel_reused,
+            "fast_builds": c.build_count(BuilderKind::Fast),
+            "fast_build_ms": c.build_ms(BuilderKind::Fast),
+            "sah_builds": c.build_count(BuilderKind::Sah),
+            "sah_build_ms": c.build_ms(BuilderKind::Sah),
+            "promotions_started": c.promotions_started.len(),
+            "promotions_swapped": c.promotions_swapped.len(),
+            "render_ms": st.render_ms,
+            "mrays_per_s": st.mrays_per_s,
+            "rays": {"primary": st.rays.primary, "shadow": st.rays.shadow, "reflection": st.rays.reflection, "refraction": st.rays.refraction},
+            "instances": c.instances,
+            "distributed": net,
+        });
+        sink.line(&line).map_err(|e| done(f, e))?;
+        bar.set_message(format!("{:.1} ms/frame", c.total_ms + st.render_ms));
+        bar.inc(1);
+    }
+    bar.finish();
+    Ok(())
 }
 
 /// Writes a PNG atomically (`Image::save_png`: a failed write leaves no

@@ -1,7 +1,6 @@
-//! `openrt bench`: the paper's frame-rate table on this machine, speed
-//! against error, and the component figures, written to docs/BENCHMARKS.md.
+//! The measurements of `openrt bench`: each function runs scenes and
+//! returns typed results (`results.rs`); nothing here formats the report.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -13,59 +12,20 @@ use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
 use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool};
 use openrt_scene::ScenePlayer;
 
-/// Options of a benchmark run.
-pub struct BenchOptions {
-    pub scenes: Vec<String>,
-    pub frames: usize,
-    pub width: u32,
-    pub height: u32,
-    pub threads: Vec<usize>,
-    pub out: PathBuf,
-    pub command: String,
-}
+use super::BenchOptions;
+use super::goals::REFERENCE_SPP;
+#[cfg(feature = "embree")]
+use super::results::EmbreeRow;
+use super::results::{
+    BuilderRow, BuilderRun, ImageDiff, KindRow, OracleCheck, Quality, QualityRun, Rebuild, Results, Row, WorstDiff,
+};
 
-/// The paper's figures (Wald, Benthin & Slusallek 2003), fps for 1, 2, 4, 8
-/// and 16 rendering clients of 2 CPUs each (2 to 32 CPUs); NaN where the
-/// paper gives no figure (the robots: only the ends of the range).
-const PAPER: &[(&str, &str, [f64; 5])] = &[
-    ("robots", "Whitted", [0.24, f64::NAN, f64::NAN, f64::NAN, 4.0]),
-    ("robots", "GL-like", [1.25, f64::NAN, f64::NAN, f64::NAN, 20.0]),
-    ("kitchen", "Whitted", [0.25, 0.5, 1.05, 2.0, 4.0]),
-    ("kitchen", "GL-like", [1.7, 3.4, 6.8, 13.6, 26.0]),
-    ("terrain", "Whitted", [0.3, 0.6, 1.19, 2.29, 4.26]),
-    ("museum1k", "Whitted", [0.6, 1.2, 2.4, 4.8, 9.3]),
-    ("museum4k", "Whitted", [0.55, 1.1, 2.2, 4.2, 2.5]),
-    ("museum16k", "Whitted", [0.45, 0.9, 1.65, 0.98, 0.53]),
-];
-
-fn median(mut v: Vec<f64>) -> f64 {
+pub(super) fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
-}
-
-/// Per scene, mode and thread count: the medians over the sampled frames.
-struct Row {
-    scene: String,
-    mode: &'static str,
-    backend: &'static str,
-    threads: usize,
-    commit_ms: f64,
-    toplevel_ms: f64,
-    fast_ms: f64,
-    promotions: usize,
-    render_ms: f64,
-    rays: f64,
-    triangles: usize,
-    instances: usize,
-}
-
-impl Row {
-    fn fps(&self) -> f64 {
-        1000.0 / (self.commit_ms + self.render_ms)
-    }
 }
 
 fn scene_path(name: &str) -> PathBuf {
@@ -89,17 +49,6 @@ fn settings(o: &BenchOptions, mode: RenderMode, depth: u32) -> RenderSettings {
 
 /// Samples gathered per (threads, mode): commit, top-level, fast-build ms, promotions, render ms, rays.
 type Acc = (Vec<f64>, Vec<f64>, Vec<f64>, usize, Vec<f64>, Vec<f64>);
-
-/// How one backend's image of a frame differs from the `kd` backend's.
-struct ImageDiff {
-    scene: String,
-    mode: &'static str,
-    backend: &'static str,
-    /// The RGB bytes are identical.
-    identical: bool,
-    /// Share of pixels with a channel off by more than 8/255.
-    off_share: f64,
-}
 
 /// Compares `img` with the `kd` image of the same frame.
 fn image_diff(kd: &Image, img: &Image) -> (bool, f64) {
@@ -251,18 +200,6 @@ fn measure_scene(
     Ok(())
 }
 
-/// One ray kind of a frame: (kind, Mrays/s single, Mrays/s packets, rays).
-struct KindRow {
-    kind: &'static str,
-    single: f64,
-    packet: f64,
-    /// Embree one by one and in packets (builds with `--features embree`).
-    embree: Option<(f64, f64)>,
-    /// The same queries with BVHs under the instances: one by one, packets.
-    bvh: (f64, f64),
-    rays: usize,
-}
-
 /// Ray queries alone, one thread, no shading: a frame's primary rays
 /// (closest hit) in the renderer's pixel blocks, and the shadow rays from
 /// their hits to each light (any hit, with each light's last occluder tried
@@ -380,6 +317,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
             Some((n / one / 1e6, n / pk / 1e6))
         };
         out.push(KindRow {
+            scene: name.to_string(),
             kind,
             single: n / single / 1e6,
             packet: n / packet / 1e6,
@@ -431,7 +369,7 @@ fn packets_with<const N: usize>(rays: &[Ray], mut query: impl FnMut(&[Ray; N]) -
 }
 
 /// Root-mean-square error (0..1 scale) and PSNR in dB between two images of the same size.
-fn rmse_psnr(a: &Image, b: &Image) -> (f64, f64) {
+pub(super) fn rmse_psnr(a: &Image, b: &Image) -> (f64, f64) {
     let mut se = 0.0;
     for (p, q) in a.pixels.iter().zip(&b.pixels) {
         let d = (p.clamp(Vec3::ZERO, Vec3::ONE) - q.clamp(Vec3::ZERO, Vec3::ONE)).as_dvec3();
@@ -442,7 +380,7 @@ fn rmse_psnr(a: &Image, b: &Image) -> (f64, f64) {
 }
 
 /// Nearest-neighbour upsampling to `w` x `h` (`image::imageops::resize`).
-fn upsample(img: &Image, w: u32, h: u32) -> Image {
+pub(super) fn upsample(img: &Image, w: u32, h: u32) -> Image {
     let buf: image::Rgb32FImage = image::ImageBuffer::from_fn(img.width, img.height, |x, y| {
         image::Rgb(img.pixels[(y * img.width + x) as usize].to_array())
     });
@@ -454,20 +392,11 @@ fn upsample(img: &Image, w: u32, h: u32) -> Image {
     }
 }
 
-struct Quality {
-    scene: String,
-    label: String,
-    ms: f64,
-    rmse: f64,
-    psnr: f64,
-}
-
-/// Samples per pixel of the speed-against-error reference.
-const REFERENCE_SPP: u32 = 64;
-/// PSNR that counts as "close to the reference" in the report.
-const CLOSE_DB: f64 = 35.0;
-
-fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<Quality>, String> {
+/// Speed against error on `name`'s middle frame: every setting's render time
+/// and its error against a 64-spp reference, the worst setting's difference
+/// image (written beside the report), and sampled primary rays checked
+/// against the f64 oracle.
+fn speed_vs_error(o: &BenchOptions, name: &str) -> Result<QualityRun, String> {
     let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
     let threads = *o.threads.iter().max().unwrap_or(&1);
     player.ctx_mut().set_threads(threads).map_err(|e| e.to_string())?;
@@ -550,74 +479,48 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
             psnr,
         });
     }
-    let _ = writeln!(
-        out,
-        "\n### {name} (frame {f})\n\nReference: Whitted depth 8, {REFERENCE_SPP} samples per pixel, trilinear textures ({reference_s:.0} s to render). Every row differs from the default (Whitted depth 3, 1 sample per pixel, trilinear) in one setting; lower resolutions are upsampled (nearest) before comparison.\n\n| setting | render ms | RMSE | PSNR dB |\n|---|---:|---:|---:|"
-    );
-    for x in &q {
-        let _ = writeln!(out, "| {} | {:.1} | {:.4} | {:.1} |", x.label, x.ms, x.rmse, x.psnr);
-    }
-    let cheapest = q
-        .iter()
-        .filter(|x| x.psnr >= CLOSE_DB)
-        .min_by(|a, b| a.ms.total_cmp(&b.ms));
-    if let Some(c) = cheapest {
-        let _ = writeln!(
-            out,
-            "\nThe cheapest setting within {CLOSE_DB} dB of the reference: **{}** ({:.1} ms, {:.1} dB).",
-            c.label, c.ms, c.psnr
-        );
-    } else {
-        let best = q.iter().max_by(|a, b| a.psnr.total_cmp(&b.psnr));
-        let _ = writeln!(
-            out,
-            "\nNo setting is within {CLOSE_DB} dB of the reference; the closest is {}.",
-            best.map_or("-".into(), |b| format!(
-                "{} ({:.1} dB, {:.1} ms)",
-                b.label, b.psnr, b.ms
-            ))
-        );
-    }
-    let row = |l: &str| q.iter().find(|x| x.label.starts_with(l));
-    if let (Some(tri), Some(bi)) = (row("Whitted depth 3 (trilinear"), row("depth 3, bilinear")) {
-        let (e, c) = (tri.rmse / bi.rmse, tri.ms / bi.ms);
-        let goal = if name == "robots" {
-            format!(
-                " (goal for the robots: error at most x0.5 for at most x1.15: {})",
-                if e <= 0.5 && c <= 1.15 { "met" } else { "**not met**" }
-            )
-        } else {
-            String::new()
-        };
-        let _ = writeln!(
-            out,
-            "Trilinear against bilinear at 1 sample: error x{e:.2}, frame time x{c:.2}{goal}."
-        );
-    }
-    if let Some((rmse, label, img)) = worst {
-        let file = format!("bench-diff-{name}.png");
-        let diff: Vec<u8> = img
+    let worst = worst.map(|(rmse, label, img)| WorstDiff {
+        file: write_diff(o, name, &img, &reference),
+        label,
+        rmse,
+    });
+    let oracle = oracle_check(o, &scene, &cam)?;
+    Ok(QualityRun {
+        scene: name.to_string(),
+        frame: f,
+        reference_s,
+        rows: q,
+        worst,
+        oracle,
+    })
+}
+
+/// Writes the difference image of `img` against `reference` (x4) beside the
+/// report; returns its file name, or why it was not written.
+fn write_diff(o: &BenchOptions, name: &str, img: &Image, reference: &Image) -> Result<String, String> {
+    let file = format!("bench-diff-{name}.png");
+    let diff = Image {
+        width: img.width,
+        height: img.height,
+        pixels: img
             .pixels
             .iter()
             .zip(&reference.pixels)
-            .flat_map(|(a, b)| {
-                let d = (a.clamp(Vec3::ZERO, Vec3::ONE) - b.clamp(Vec3::ZERO, Vec3::ONE)).abs() * 4.0;
-                d.to_array().map(|c| (c.min(1.0) * 255.0) as u8)
+            .map(|(a, b)| {
+                ((a.clamp(Vec3::ZERO, Vec3::ONE) - b.clamp(Vec3::ZERO, Vec3::ONE)).abs() * 4.0).min(Vec3::ONE)
             })
-            .collect();
-        let path = o.out.with_file_name(&file);
-        match image::save_buffer(&path, &diff, o.width, o.height, image::ColorType::Rgb8) {
-            Ok(()) => {
-                let _ = writeln!(
-                    out,
-                    "\nThe worst row, {label} (RMSE {rmse:.4}), against the reference, differences x4:\n\n![{name}: worst row against the reference]({file})"
-                );
-            }
-            Err(e) => {
-                let _ = writeln!(out, "\n(difference image not written: {e})");
-            }
-        }
-    }
+            .collect(),
+    };
+    diff.save_png(o.out.with_file_name(&file)).map_err(|e| e.to_string())?;
+    Ok(file)
+}
+
+/// Sampled primary rays of the frame (about 800) against the f64 oracle.
+fn oracle_check(
+    o: &BenchOptions,
+    scene: &openrt_core::Scene,
+    cam: &openrt_core::Camera,
+) -> Result<OracleCheck, String> {
     // Numerical error of the accelerated path: sampled primary rays against the f64 oracle.
     let (world, origin) = scene.world_triangles();
     let oracle = BruteForce::new(&world);
@@ -642,14 +545,12 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
             other_prim += 1;
         }
     }
-    let _ = writeln!(
-        out,
-        "\nNumerical error of the accelerated path on {name} (frame {f}): {checked} sampled primary rays checked against the brute-force f64 oracle over {} world-space triangles: **{failed} disagree beyond rounding tolerance ({:.3}%)**; {other_prim} ({:.2}%) report a different first triangle than the exact f64 answer, all within the tolerance (shared edges, coplanar overlaps, grazing hits).",
-        world.len(),
-        100.0 * failed as f64 / checked.max(1) as f64,
-        100.0 * other_prim as f64 / checked.max(1) as f64
-    );
-    Ok(q)
+    Ok(OracleCheck {
+        triangles: world.len(),
+        checked,
+        failed,
+        other_prim,
+    })
 }
 
 /// Fast (refitted or afresh) vs SAH trees for the moving triangles of
@@ -662,11 +563,7 @@ fn speed_vs_error(o: &BenchOptions, name: &str, out: &mut String) -> Result<Vec<
 /// over the frames of refitted-tree render time / afresh-tree render time.
 /// Returns the median per-frame ratios of Whitted render time with
 /// refitted trees to trees built afresh: kd-trees, then BVHs.
-fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(f64, f64), String> {
-    let _ = writeln!(
-        out,
-        "\n| moving-object builder | commit ms (median) | Whitted render ms | frame ms |\n|---|---:|---:|---:|"
-    );
+fn builders(o: &BenchOptions, name: &str) -> Result<BuilderRun, String> {
     let variants = [
         ("fast, refitted (default)", BuilderKind::Fast, true, Accel::Kd),
         ("fast, afresh", BuilderKind::Fast, false, Accel::Kd),
@@ -722,12 +619,21 @@ fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(f64, f64)
                 .collect(),
         )
     };
-    let ratios = (ratio(0, 1), ratio(3, 4));
-    for ((label, ..), (c, rt)) in variants.iter().zip(commits.into_iter().zip(renders)) {
-        let (c, rt) = (median(c), median(rt));
-        let _ = writeln!(out, "| {label} | {c:.2} | {rt:.1} | {:.1} |", c + rt);
-    }
-    Ok(ratios)
+    let rows = variants
+        .iter()
+        .zip(commits.into_iter().zip(renders.iter()))
+        .map(|((label, ..), (c, rt))| BuilderRow {
+            label,
+            commit_ms: median(c),
+            render_ms: median(rt.clone()),
+        })
+        .collect();
+    Ok(BuilderRun {
+        scene: name.to_string(),
+        rows,
+        kd_ratio: ratio(0, 1),
+        bvh_ratio: ratio(3, 4),
+    })
 }
 
 /// One museum's moving triangles rebuilt three ways on the same frames
@@ -735,22 +641,6 @@ fn builders(o: &BenchOptions, name: &str, out: &mut String) -> Result<(f64, f64)
 /// motion of a played animation): the fast builder afresh, the fast tree
 /// refitted from the last frame's (with its quality check), and with
 /// `--features embree` Embree's LOW build; each on `threads` threads.
-struct Rebuild {
-    scene: String,
-    triangles: usize,
-    fresh_ms: f64,
-    refit_ms: f64,
-    refits: usize,
-    frames: usize,
-    fresh_cost: f64,
-    refit_cost: f64,
-    embree_ms: Option<f64>,
-    /// The BVH: built afresh, refitted (`Bvh::refit`), refitted frames.
-    bvh_ms: f64,
-    bvh_refit_ms: f64,
-    bvh_refits: usize,
-}
-
 fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
     use openrt_accel::{BspBuilder, FastParams, KdTree};
     let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
@@ -850,57 +740,17 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
     })
 }
 
-/// The rebuild table of the museums in `o`; returns its rows.
-fn rebuilds(o: &BenchOptions, out: &mut String) -> Result<Vec<Rebuild>, String> {
+/// The moving triangles of the museums in `o` rebuilt by each builder.
+fn rebuilds(o: &BenchOptions) -> Result<Vec<Rebuild>, String> {
     let threads = *o.threads.iter().max().unwrap_or(&1);
     let names: Vec<&String> = o.scenes.iter().filter(|s| s.starts_with("museum")).collect();
     if names.is_empty() {
         return Ok(Vec::new());
     }
-    let _ = writeln!(
-        out,
-        "\n## Rebuilding the moving triangles ({threads} threads)\n\nEvery other frame of each museum's animation, in order; per frame the moving triangles (handed over as a commit hands them: moved, so their copy is not timed; Embree copies them into its own buffer, timed), each build run where a commit runs it (on the {threads}-thread pool from {} triangles up, below that on the calling thread: `BspBuilder::install_build`), are built afresh by the fast builder, refitted on the last frame's tree (`KdTree::refit_fast`: the old split planes with the new triangles, leaves that overflow split further, rebuilt afresh when the SAH cost exceeds {:.2}x the last full build's; what a commit does by default), and{} built by Embree at LOW quality; medians. SAH cost: expected steps and tests per ray (`KdTree::sah_cost`), mean over the frames. The BVH columns: the same triangles built afresh (`Bvh::build`) and refitted on the last frame's BVH (`Bvh::refit`, rebuilt past {:.2}x the last build's SAH cost); goal: BVH refit <= Embree LOW.\n\n| scene | triangles | fast afresh ms | refit ms | refitted frames | Embree LOW ms | Embree / refit | SAH cost afresh | SAH cost refit | BVH afresh ms | BVH refit ms | BVH refitted frames | Embree LOW / BVH refit | goal |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
-        openrt_accel::PARALLEL_MIN,
-        openrt_accel::DEFAULT_REFIT_COST_LIMIT,
-        if cfg!(feature = "embree") {
-            ""
-        } else {
-            " (with `--features embree`)"
-        },
-        openrt_accel::BVH_REFIT_COST_LIMIT
-    );
     let mut rows = Vec::new();
     for name in names {
         eprintln!("bench: rebuilds on {name}");
-        let r = rebuild_figures(name, threads)?;
-        let (e, ratio) = match r.embree_ms {
-            Some(e) => (format!("{e:.3}"), format!("{:.2}", e / r.refit_ms.max(1e-9))),
-            None => ("-".into(), "-".into()),
-        };
-        let (bvh_ratio, goal) = match r.embree_ms {
-            Some(e) => (
-                format!("{:.2}", e / r.bvh_refit_ms.max(1e-9)),
-                if r.bvh_refit_ms <= e { "met" } else { "**not met**" },
-            ),
-            None => ("-".into(), "not measured (build without Embree)"),
-        };
-        let _ = writeln!(
-            out,
-            "| {} | {} | {:.3} | {:.3} | {} / {} | {e} | {ratio} | {:.2} | {:.2} | {:.3} | {:.3} | {} / {} | {bvh_ratio} | {goal} |",
-            r.scene,
-            r.triangles,
-            r.fresh_ms,
-            r.refit_ms,
-            r.refits,
-            r.frames,
-            r.fresh_cost,
-            r.refit_cost,
-            r.bvh_ms,
-            r.bvh_refit_ms,
-            r.bvh_refits,
-            r.frames
-        );
-        rows.push(r);
+        rows.push(rebuild_figures(name, threads)?);
     }
     Ok(rows)
 }
@@ -908,7 +758,7 @@ fn rebuilds(o: &BenchOptions, out: &mut String) -> Result<Vec<Rebuild>, String> 
 /// The same frames and primary rays through an Embree two-level scene:
 /// per-frame rebuild time and single-ray throughput, one thread each.
 #[cfg(feature = "embree")]
-fn embree_side_by_side(o: &BenchOptions, name: &str, out: &mut String) -> Result<(), String> {
+fn embree_side_by_side(o: &BenchOptions, name: &str) -> Result<EmbreeRow, String> {
     use std::sync::Arc;
 
     use openrt_accel::EmbreeTwoLevel;
@@ -991,57 +841,13 @@ fn embree_side_by_side(o: &BenchOptions, name: &str, out: &mut String) -> Result
         n_rays as f64 / median(ours_r) / 1e6,
         n_rays as f64 / median(emb_r) / 1e6,
     );
-    let _ = writeln!(
-        out,
-        "| {name} | {oc:.2} | {ec:.2} | {:.2} | {orr:.2} | {er:.2} | {:.2} |",
-        ec / oc.max(1e-9),
-        orr / er
-    );
-    Ok(())
-}
-
-/// Registers DejaVu Sans as the plots' "sans-serif" font.
-pub(crate) fn register_plot_font() -> Result<(), String> {
-    use plotters::prelude::FontStyle;
-    let font = ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"]
-        .iter()
-        .find_map(|p| std::fs::read(p).ok())
-        .ok_or("no DejaVuSans.ttf for the plot's labels (apt-get install fonts-dejavu-core)")?;
-    plotters::style::register_font("sans-serif", FontStyle::Normal, Box::leak(font.into_boxed_slice()))
-        .map_err(|_| "cannot load the plot font".to_string())
-}
-
-fn plot(path: &Path, q: &[Quality]) -> Result<(), String> {
-    use plotters::prelude::*;
-    register_plot_font()?;
-    let root = SVGBackend::new(path, (720, 480)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let max_ms = q.iter().map(|x| x.ms).fold(1.0, f64::max) * 1.15;
-    let max_err = q.iter().map(|x| x.rmse).fold(0.01, f64::max) * 1.15;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            "frame time against error (RMSE vs a 64-spp depth-8 reference)",
-            ("sans-serif", 18),
-        )
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..max_ms, 0.0..max_err)
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc("render time per frame (ms)")
-        .y_desc("RMSE")
-        .draw()
-        .map_err(|e| e.to_string())?;
-    chart
-        .draw_series(q.iter().map(|x| {
-            EmptyElement::at((x.ms, x.rmse))
-                + Circle::new((0, 0), 4, BLUE.filled())
-                + Text::new(format!("{}: {}", x.scene, x.label), (6, -6), ("sans-serif", 10))
-        }))
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())
+    Ok(EmbreeRow {
+        scene: name.to_string(),
+        ours_commit_ms: oc,
+        embree_update_ms: ec,
+        ours_mrays: orr,
+        embree_mrays: er,
+    })
 }
 
 /// The machine, as far as the standard library tells: cores and system (the
@@ -1053,430 +859,61 @@ fn machine() -> String {
     format!("{cores} cores, {}", std::env::consts::OS)
 }
 
-/// Runs everything and writes the report.
-pub fn run(o: &BenchOptions) -> Result<(), String> {
-    let start = Instant::now();
-    let mut rows = Vec::new();
-    let mut diffs = Vec::new();
+/// Runs every measurement of the bench for `o`.
+pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
+    let (mut frames, mut diffs) = (Vec::new(), Vec::new());
     for s in &o.scenes {
         eprintln!("bench: {s}");
         let mut reference = Vec::new();
-        measure_scene(o, s, Accel::Kd, &mut rows, &mut diffs, &mut reference)?;
-        measure_scene(o, s, Accel::Bvh, &mut rows, &mut diffs, &mut reference)?;
+        measure_scene(o, s, Accel::Kd, &mut frames, &mut diffs, &mut reference)?;
+        measure_scene(o, s, Accel::Bvh, &mut frames, &mut diffs, &mut reference)?;
     }
-    let mut md = String::new();
-    let _ = writeln!(
-        md,
-        "# Benchmarks\n\nGenerated {} by `{}` ({}) on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds, promotions) + render; fps = 1000 / frame time.\n",
-        humantime::format_rfc3339_seconds(std::time::SystemTime::now()),
-        o.command,
-        if cfg!(feature = "embree") {
-            "a build with `--features embree`"
-        } else {
-            "a build without Embree"
-        },
-        machine(),
-        std::env::consts::ARCH,
-        o.width,
-        o.height,
-        o.frames
-    );
-    let _ = writeln!(
-        md,
-        "## Frame rates on this machine\n\n| scene | mode | backend | threads | fps | commit ms | top-level ms | fast rebuild ms | promotions | render ms | rays/frame | instances | triangles |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-    );
-    for r in &rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} | {} | {:.1} | {:.0} | {} | {} |",
-            r.scene,
-            r.mode,
-            r.backend,
-            r.threads,
-            r.fps(),
-            r.commit_ms,
-            r.toplevel_ms,
-            r.fast_ms,
-            r.promotions,
-            r.render_ms,
-            r.rays,
-            r.instances,
-            r.triangles
-        );
+    let mut kinds = Vec::new();
+    for name in &o.scenes {
+        eprintln!("bench: ray kinds on {name}");
+        kinds.extend(ray_kinds(o, name)?);
     }
-    let _ = writeln!(
-        md,
-        "\n## Ray packets against single rays, and against Embree\n\nThe same frames through every backend of this build: `kd` (packets of {} lanes on this CPU), `kd-single`, and with `--features embree` Embree 3 one ray at a time (`embree`: rtcIntersect1/rtcOccluded1) and in packets of the same width (`embree-packet`: rtcIntersect4/8/16, rtcOccluded4/8/16), one Embree scene per object (HIGH quality, LOW for redefined objects) under a top-level scene committed every frame, its build counted in its render time. The kd images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`); Embree's differ only by its own hits. fps = 1000 / (commit + render). `bvh` and `bvh-single`: the kd backends' packets and single rays with 4-wide BVHs under the instances (`--accel bvh`), the same bytes.\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single | embree fps | embree-packet fps | kd / embree-packet | goal kd >= embree-packet | bvh fps | bvh-single fps | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---|",
-        crate::packet_width().lanes()
-    );
-    let find = |r: &Row, b: &str| {
-        rows.iter()
-            .find(|q| q.backend == b && q.scene == r.scene && q.mode == r.mode && q.threads == r.threads)
-            .map(Row::fps)
-    };
-    for r in rows.iter().filter(|r| r.backend == Backend::Kd.name()) {
-        let f = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
-        let ratio = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}x", r.fps() / v));
-        let (single, em, emp) = (find(r, "kd-single"), find(r, "embree"), find(r, "embree-packet"));
-        let goal = |fps: Option<f64>| match (fps, emp) {
-            (Some(f), Some(e)) if f >= e => "met",
-            (Some(_), Some(_)) => "**not met**",
-            (None, _) => "not measured",
-            (_, None) => "not measured (build without Embree)",
-        };
-        let verdict = goal(Some(r.fps()));
-        let (bvh, bvh_single) = (find(r, "bvh"), find(r, "bvh-single"));
-        let bvh_ratio = match (bvh, emp) {
-            (Some(b), Some(e)) => format!("{:.2}x", b / e),
-            _ => "-".into(),
-        };
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {verdict} | {} | {} | {bvh_ratio} | {} |",
-            r.scene,
-            r.mode,
-            r.threads,
-            r.fps(),
-            f(single),
-            ratio(single),
-            f(em),
-            f(emp),
-            ratio(emp),
-            f(bvh),
-            f(bvh_single),
-            goal(bvh),
-        );
-    }
-    let _ = writeln!(
-        md,
-        "\nImages against the `kd` image of the same frame (first sampled frame of each scene):\n\n| scene | mode | backend | same bytes | pixels off by more than 8/255 |\n|---|---|---|---|---:|"
-    );
-    for d in &diffs {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {:.3}% |",
-            d.scene,
-            d.mode,
-            d.backend,
-            if d.identical { "yes" } else { "no" },
-            100.0 * d.off_share
-        );
-    }
-    let mut kind_rows: Vec<(String, KindRow)> = Vec::new();
-    if !o.scenes.is_empty() {
-        let lanes = crate::packet_width().lanes();
-        let _ = writeln!(
-            md,
-            "\nRay queries alone, per scene (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit (the kd and BVH backends try each light's last occluder first, as in a frame; Embree's any-hit query names no occluder). `bvh-single` and `bvh`: the same queries with 4-wide BVHs under the instances (`--accel bvh`); goal: `bvh` >= `embree-packet`.\n\n| scene | rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal 3x | embree Mrays/s | embree-packet Mrays/s | kd / embree-packet | bvh-single Mrays/s | bvh Mrays/s | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---|"
-        );
-        for name in &o.scenes {
-            eprintln!("bench: ray kinds on {name}");
-            for k in ray_kinds(o, name)? {
-                let ratio = k.packet / k.single;
-                let verdict = if ratio >= 3.0 { "met" } else { "**not met**" };
-                let (em, emp, vs) = k.embree.map_or(("-".into(), "-".into(), "-".into()), |(a, b)| {
-                    (format!("{a:.2}"), format!("{b:.2}"), format!("{:.2}x", k.packet / b))
-                });
-                let (bs, bp) = k.bvh;
-                let (bvs, bgoal) = k
-                    .embree
-                    .map_or(("-".into(), "not measured (build without Embree)"), |(_, b)| {
-                        (format!("{:.2}x", bp / b), if bp >= b { "met" } else { "**not met**" })
-                    });
-                let _ = writeln!(
-                    md,
-                    "| {name} | {} | {} | {:.2} | {:.2} | {ratio:.2}x | {verdict} | {em} | {emp} | {vs} | {bs:.2} | {bp:.2} | {bvs} | {bgoal} |",
-                    k.kind, k.rays, k.single, k.packet
-                );
-                kind_rows.push((name.clone(), k));
-            }
-        }
-    }
-    // The tables below use the default backend.
-    let rows: Vec<Row> = rows.into_iter().filter(|r| r.backend == Backend::Kd.name()).collect();
-    let _ = writeln!(
-        md,
-        "\n## Beside the paper (Wald, Benthin & Slusallek 2003)\n\nThe paper's columns count rendering clients of 2 CPUs each: its \"1\" is 2 CPUs and its \"16\" is 32. Per CPU, its single client gave half its frame rate; compare that with one thread here.\n\n| scene | mode | paper, 1 client (2 CPUs) | 2 (4) | 4 (8) | 8 (16) | 16 (32) | paper per CPU | here, 1 thread | here, max threads | scaling |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-    );
-    for (scene, mode, p) in PAPER {
-        let here: Vec<&Row> = rows.iter().filter(|r| r.scene == *scene && r.mode == *mode).collect();
-        let one = here.iter().find(|r| r.threads == 1).map(|r| r.fps());
-        let max = here.iter().max_by_key(|r| r.threads).map(|r| (r.threads, r.fps()));
-        let f = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
-        let scaling = match (one, max) {
-            (Some(a), Some((t, b))) if t > 1 => format!("{:.2}x on {t}", b / a),
-            _ => "-".into(),
-        };
-        let paper = |v: f64| if v.is_nan() { "-".to_string() } else { format!("{v}") };
-        let _ = writeln!(
-            md,
-            "| {scene} | {mode} | {} | {} | {} | {} | {} | {:.3} | {} | {} | {scaling} |",
-            paper(p[0]),
-            paper(p[1]),
-            paper(p[2]),
-            paper(p[3]),
-            paper(p[4]),
-            p[0] / 2.0,
-            f(one),
-            f(max.map(|m| m.1))
-        );
-    }
-    // Thread scaling: every measured thread count, beside the paper's 1..16 CPUs.
-    let counts: Vec<usize> = {
-        let mut c: Vec<usize> = rows.iter().map(|r| r.threads).collect();
-        c.sort_unstable();
-        c.dedup();
-        c
-    };
-    if counts.len() > 2 {
-        let heads: Vec<String> = counts.iter().map(|t| format!("{t} thr")).collect();
-        let _ = writeln!(
-            md,
-            "\n## Thread scaling (fps; speedup and parallel efficiency against 1 thread)\n\n| scene | mode | {} | speedup | efficiency | paper speedup 1 -> 16 clients (2 -> 32 CPUs) |\n|---|---|{}---:|---:|---:|",
-            heads.join(" | "),
-            "---:|".repeat(counts.len())
-        );
-        let mut pairs: Vec<(&str, &str)> = Vec::new();
-        for r in &rows {
-            if !pairs.contains(&(r.scene.as_str(), r.mode)) {
-                pairs.push((r.scene.as_str(), r.mode));
-            }
-        }
-        for (scene, mode) in pairs {
-            let at = |t: usize| {
-                rows.iter()
-                    .find(|r| r.scene == scene && r.mode == mode && r.threads == t)
-                    .map(Row::fps)
-            };
-            let cells: Vec<String> = counts
-                .iter()
-                .map(|&t| at(t).map_or("-".into(), |v| format!("{v:.2}")))
-                .collect();
-            let max = *counts.last().unwrap_or(&1);
-            let (speedup, eff) = match (at(1), at(max)) {
-                (Some(a), Some(b)) if a > 0.0 => {
-                    (format!("{:.2}x", b / a), format!("{:.0}%", 100.0 * b / a / max as f64))
-                }
-                _ => ("-".into(), "-".into()),
-            };
-            let paper = PAPER
-                .iter()
-                .find(|(s, m, _)| *s == scene && *m == mode)
-                .map_or("-".into(), |(_, _, p)| format!("{:.2}x", p[4] / p[0]));
-            let _ = writeln!(
-                md,
-                "| {scene} | {mode} | {} | {speedup} | {eff} | {paper} |",
-                cells.join(" | ")
-            );
-        }
-    }
-    // Targets.
-    let fps = |s: &str, m: &str| {
-        rows.iter()
-            .filter(|r| r.scene == s && r.mode == m)
-            .max_by_key(|r| r.threads)
-            .map(Row::fps)
-    };
-    let mut rebuild_md = String::new();
-    let rebuild_rows = rebuilds(o, &mut rebuild_md)?;
-    // Fast (refitted or afresh) and SAH trees for each museum's moving
-    // triangles: commit against render.
-    let mut builder_md = String::new();
-    let mut builder_rows = Vec::new();
-    if o.scenes.iter().any(|s| s.starts_with("museum")) {
-        let _ = writeln!(
-            builder_md,
-            "\n## Moving objects: fast, refitted and SAH trees\n\nThe museums' moving triangles under each builder (`Context::set_refit`, `Context::set_redefinition_builder`; the BVH rows with `Context::set_accel`), each sampled frame committed right after the two frames before it, as when the animation plays; same triangles, so the cost moves between commit and render. The builders take turns frame by frame (the first of them changing from frame to frame), so that the machine's phases fall on all of them alike."
-        );
-    }
+    let rebuilds = rebuilds(o)?;
+    let mut builder_runs = Vec::new();
     for name in o.scenes.iter().filter(|s| s.starts_with("museum")) {
         eprintln!("bench: builders on {name}");
-        let _ = writeln!(builder_md, "\n### {name}");
-        builder_rows.push((name.clone(), builders(o, name, &mut builder_md)?));
+        builder_runs.push(builders(o, name)?);
     }
-    let _ = writeln!(md, "\n## Targets (this machine)\n");
-    let mut target = |what: &str, got: Option<f64>, goal: f64, unit: &str, higher: bool| {
-        let line = match got {
-            Some(g) if (higher && g >= goal) || (!higher && g <= goal) => {
-                format!("- {what}: {g:.2} {unit} (goal {goal} {unit}): met")
-            }
-            Some(g) => format!(
-                "- {what}: {g:.2} {unit} (goal {goal} {unit}): **not met**, {:.2}x short",
-                if higher { goal / g } else { g / goal }
-            ),
-            None => format!("- {what}: not measured in this run"),
-        };
-        let _ = writeln!(md, "{line}");
-    };
-    target("kitchen full Whitted", fps("kitchen", "Whitted"), 4.3, "fps", true);
-    target("kitchen GL-like", fps("kitchen", "GL-like"), 26.0, "fps", true);
-    let m16 = rows.iter().find(|r| r.scene == "museum16k").map(|r| r.fast_ms);
-    target("museum 16k rebuild", m16, 2.0, "ms", false);
-    for r in &rebuild_rows {
-        target(
-            &format!(
-                "{} moving triangles, Embree LOW build time / our refit time (rebuild table)",
-                r.scene
-            ),
-            r.embree_ms.map(|e| e / r.refit_ms.max(1e-9)),
-            1.0,
-            "x",
-            true,
-        );
-    }
-    for (name, (kd, bvh)) in &builder_rows {
-        for (what, ratio) in [("kd-trees", kd), ("BVHs", bvh)] {
-            target(
-                &format!(
-                    "{name} Whitted render with refitted {what} / with {what} built afresh (builders table, median of the per-frame ratios)"
-                ),
-                Some(*ratio),
-                1.05,
-                "x",
-                false,
-            );
-        }
-    }
-    let scal = rows
-        .iter()
-        .filter(|r| r.scene == "kitchen" && r.mode == "Whitted")
-        .fold((None, None), |(a, b), r| {
-            if r.threads == 1 {
-                (Some(r.render_ms), b)
-            } else if r.threads == 2 {
-                (a, Some(r.render_ms))
-            } else {
-                (a, b)
-            }
-        });
-    target(
-        "render thread scaling 1 -> 2 (kitchen Whitted)",
-        scal.0.zip(scal.1).map(|(a, b)| a / b),
-        1.9,
-        "x",
-        true,
-    );
-    // Packets against single rays, per ray kind over the scenes.
-    for kind in ["primary", "shadow"] {
-        let of_kind: Vec<(&String, f64)> = kind_rows
-            .iter()
-            .filter(|(_, k)| k.kind == kind)
-            .map(|(n, k)| (n, k.packet / k.single))
-            .collect();
-        if of_kind.is_empty() {
-            continue;
-        }
-        let met: Vec<&str> = of_kind
-            .iter()
-            .filter(|(_, r)| *r >= 3.0)
-            .map(|(n, _)| n.as_str())
-            .collect();
-        let lo = of_kind.iter().map(|(_, r)| *r).fold(f64::INFINITY, f64::min);
-        let hi = of_kind.iter().map(|(_, r)| *r).fold(0.0, f64::max);
-        let verdict = if met.len() == of_kind.len() {
-            "met on every scene".to_string()
-        } else if met.is_empty() {
-            "**not met** on any scene".to_string()
-        } else {
-            format!(
-                "**not met** on {} of {} scenes (met on {})",
-                of_kind.len() - met.len(),
-                of_kind.len(),
-                met.join(", ")
-            )
-        };
-        let _ = writeln!(
-            md,
-            "- {kind} rays in packets against single rays (ray queries table): {lo:.2}-{hi:.2}x over {} scenes (goal 3 x): {verdict}",
-            of_kind.len()
-        );
-    }
-    let _ = writeln!(
-        md,
-        "- ray throughput against Embree: single mesh in docs/PERFORMANCE.md (`cargo bench -p openrt-accel --bench kdtree --features embree`, which measures it); two-level scenes in the side-by-side table below."
-    );
-
     // Speed against error: the kitchen and the robots (or the first scene).
-    let mut err_scenes: Vec<String> = o
+    let mut err_scenes: Vec<&String> = o
         .scenes
         .iter()
         .filter(|s| s.as_str() == "kitchen" || s.as_str() == "robots")
-        .cloned()
         .collect();
     if err_scenes.is_empty() {
-        err_scenes.extend(o.scenes.first().cloned());
+        err_scenes.extend(o.scenes.first());
     }
-    let _ = writeln!(md, "\n## Speed against error (middle frame, {}x{})", o.width, o.height);
-    let mut q = Vec::new();
-    for s in &err_scenes {
+    let mut quality = Vec::new();
+    for s in err_scenes {
         eprintln!("bench: speed against error on {s}");
-        q.extend(speed_vs_error(o, s, &mut md)?);
+        quality.push(speed_vs_error(o, s)?);
     }
-    md.push_str(&builder_md);
-    md.push_str(&rebuild_md);
+    #[cfg_attr(not(feature = "embree"), allow(unused_mut))]
+    let mut embree = Vec::new();
     #[cfg(feature = "embree")]
+    for s in o
+        .scenes
+        .iter()
+        .filter(|s| s.as_str() == "kitchen" || s.starts_with("museum"))
     {
-        let _ = writeln!(
-            md,
-            "\n## Side by side with Embree 3 (two-level, single rays, 1 thread)\n\nSame frames, same primary rays; Embree: one scene per object (HIGH quality, LOW for objects rebuilt every frame) instanced in a top-level scene updated per frame.\n\n| scene | OpenRT-rs commit ms | Embree update ms | commit ratio (Embree/ours) | OpenRT-rs Mrays/s | Embree Mrays/s | throughput ratio (ours/Embree) |\n|---|---:|---:|---:|---:|---:|---:|"
-        );
-        for s in o
-            .scenes
-            .iter()
-            .filter(|s| s.as_str() == "kitchen" || s.starts_with("museum"))
-        {
-            eprintln!("bench: embree on {s}");
-            embree_side_by_side(o, s, &mut md)?;
-        }
+        eprintln!("bench: embree on {s}");
+        embree.push(embree_side_by_side(o, s)?);
     }
-    let svg = o.out.with_file_name("bench-speed-error.svg");
-    match plot(&svg, &q) {
-        Ok(()) => {
-            let _ = writeln!(md, "\n![frame time against error](bench-speed-error.svg)");
-        }
-        Err(e) => {
-            let _ = writeln!(md, "\n(plot not written: {e})");
-        }
-    }
-    let _ = writeln!(md, "\nThe whole run took {:.0} s.", start.elapsed().as_secs_f64());
-    std::fs::write(&o.out, md).map_err(|e| format!("{}: {e}", o.out.display()))?;
-    eprintln!("bench: wrote {} and {}", o.out.display(), svg.display());
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn error_metrics_and_upsampling() {
-        let a = Image {
-            width: 2,
-            height: 1,
-            pixels: vec![Vec3::ZERO, Vec3::ONE],
-        };
-        assert_eq!(rmse_psnr(&a, &a).0, 0.0);
-        let b = Image {
-            width: 2,
-            height: 1,
-            pixels: vec![Vec3::ONE, Vec3::ONE],
-        };
-        let (rmse, psnr) = rmse_psnr(&a, &b);
-        assert!((rmse - 0.5f64.sqrt()).abs() < 1e-9 && (psnr - 3.0103).abs() < 1e-3);
-        let u = upsample(&a, 4, 2);
-        assert_eq!(
-            u.pixels,
-            vec![
-                Vec3::ZERO,
-                Vec3::ZERO,
-                Vec3::ONE,
-                Vec3::ONE,
-                Vec3::ZERO,
-                Vec3::ZERO,
-                Vec3::ONE,
-                Vec3::ONE
-            ]
-        );
-        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
-    }
+    Ok(Results {
+        frames,
+        diffs,
+        kinds,
+        quality,
+        builders: builder_runs,
+        rebuild_threads: *o.threads.iter().max().unwrap_or(&1),
+        rebuilds,
+        embree,
+        lanes: crate::packet_width().lanes(),
+        machine: machine(),
+    })
 }

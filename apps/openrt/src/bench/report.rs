@@ -1,0 +1,480 @@
+//! The report of `openrt bench` (docs/BENCHMARKS.md), rendered from a run's
+//! typed results: every table, and the verdict of every goal (`goals.rs`).
+
+use std::fmt::Write as _;
+
+use openrt_core::Backend;
+
+use super::BenchOptions;
+use super::goals::{
+    CLOSE_DB, PACKETS_VS_SINGLE, PAPER, REFERENCE_SPP, TRILINEAR_ERROR_RATIO, TRILINEAR_TIME_RATIO, targets, verdict,
+};
+use super::results::{QualityRun, Results, Row};
+
+/// The whole report; `plot` is the speed-against-error plot's file name or
+/// why it was not written, `secs` the run's duration.
+pub(super) fn render(o: &BenchOptions, res: &Results, plot: &Result<String, String>, secs: f64) -> String {
+    let mut md = String::new();
+    frame_tables(&mut md, o, res);
+    kind_table(&mut md, res);
+    // The tables below use the default backend.
+    let rows: Vec<&Row> = res.frames.iter().filter(|r| r.backend == Backend::Kd.name()).collect();
+    paper_tables(&mut md, &rows);
+    target_list(&mut md, res);
+    let _ = writeln!(md, "\n## Speed against error (middle frame, {}x{})", o.width, o.height);
+    for q in &res.quality {
+        quality_section(&mut md, q);
+    }
+    builder_sections(&mut md, res);
+    rebuild_table(&mut md, res);
+    embree_table(&mut md, res);
+    match plot {
+        Ok(file) => {
+            let _ = writeln!(md, "\n![frame time against error]({file})");
+        }
+        Err(e) => {
+            let _ = writeln!(md, "\n(plot not written: {e})");
+        }
+    }
+    let _ = writeln!(md, "\nThe whole run took {secs:.0} s.");
+    md
+}
+
+/// The header, the frame-rate table, the backends side by side and the images.
+fn frame_tables(md: &mut String, o: &BenchOptions, res: &Results) {
+    let rows = &res.frames;
+    let _ = writeln!(
+        md,
+        "# Benchmarks\n\nGenerated {} by `{}` ({}) on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds, promotions) + render; fps = 1000 / frame time.\n",
+        humantime::format_rfc3339_seconds(std::time::SystemTime::now()),
+        o.command,
+        if cfg!(feature = "embree") {
+            "a build with `--features embree`"
+        } else {
+            "a build without Embree"
+        },
+        res.machine,
+        std::env::consts::ARCH,
+        o.width,
+        o.height,
+        o.frames
+    );
+    let _ = writeln!(
+        md,
+        "## Frame rates on this machine\n\n| scene | mode | backend | threads | fps | commit ms | top-level ms | fast rebuild ms | promotions | render ms | rays/frame | instances | triangles |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.2} | {} | {:.1} | {:.0} | {} | {} |",
+            r.scene,
+            r.mode,
+            r.backend,
+            r.threads,
+            r.fps(),
+            r.commit_ms,
+            r.toplevel_ms,
+            r.fast_ms,
+            r.promotions,
+            r.render_ms,
+            r.rays,
+            r.instances,
+            r.triangles
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n## Ray packets against single rays, and against Embree\n\nThe same frames through every backend of this build: `kd` (packets of {} lanes on this CPU), `kd-single`, and with `--features embree` Embree 3 one ray at a time (`embree`: rtcIntersect1/rtcOccluded1) and in packets of the same width (`embree-packet`: rtcIntersect4/8/16, rtcOccluded4/8/16), one Embree scene per object (HIGH quality, LOW for redefined objects) under a top-level scene committed every frame, its build counted in its render time. The kd images are the same bytes (tested in `crates/openrt-scene/tests/backends.rs`); Embree's differ only by its own hits. fps = 1000 / (commit + render). `bvh` and `bvh-single`: the kd backends' packets and single rays with 4-wide BVHs under the instances (`--accel bvh`), the same bytes.\n\n| scene | mode | threads | kd fps | kd-single fps | kd / kd-single | embree fps | embree-packet fps | kd / embree-packet | goal kd >= embree-packet | bvh fps | bvh-single fps | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---|",
+        res.lanes
+    );
+    let find = |r: &Row, b: &str| {
+        rows.iter()
+            .find(|q| q.backend == b && q.scene == r.scene && q.mode == r.mode && q.threads == r.threads)
+            .map(Row::fps)
+    };
+    for r in rows.iter().filter(|r| r.backend == Backend::Kd.name()) {
+        let f = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+        let ratio = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}x", r.fps() / v));
+        let (single, em, emp) = (find(r, "kd-single"), find(r, "embree"), find(r, "embree-packet"));
+        let goal = |fps: Option<f64>| match (fps, emp) {
+            (Some(f), Some(e)) if f >= e => "met",
+            (Some(_), Some(_)) => "**not met**",
+            (None, _) => "not measured",
+            (_, None) => "not measured (build without Embree)",
+        };
+        let verdict = goal(Some(r.fps()));
+        let (bvh, bvh_single) = (find(r, "bvh"), find(r, "bvh-single"));
+        let bvh_ratio = match (bvh, emp) {
+            (Some(b), Some(e)) => format!("{:.2}x", b / e),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {verdict} | {} | {} | {bvh_ratio} | {} |",
+            r.scene,
+            r.mode,
+            r.threads,
+            r.fps(),
+            f(single),
+            ratio(single),
+            f(em),
+            f(emp),
+            ratio(emp),
+            f(bvh),
+            f(bvh_single),
+            goal(bvh),
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nImages against the `kd` image of the same frame (first sampled frame of each scene):\n\n| scene | mode | backend | same bytes | pixels off by more than 8/255 |\n|---|---|---|---|---:|"
+    );
+    for d in &res.diffs {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.3}% |",
+            d.scene,
+            d.mode,
+            d.backend,
+            if d.identical { "yes" } else { "no" },
+            100.0 * d.off_share
+        );
+    }
+}
+
+/// Ray queries alone, per scene and kind.
+fn kind_table(md: &mut String, res: &Results) {
+    if res.kinds.is_empty() {
+        return;
+    }
+    let lanes = res.lanes;
+    let _ = writeln!(
+        md,
+        "\nRay queries alone, per scene (middle frame, one thread, no shading; medians of 5 passes): primary rays in the renderer's pixel blocks ({lanes} lanes), closest hit; the shadow rays from their hits to each light, any hit (the kd and BVH backends try each light's last occluder first, as in a frame; Embree's any-hit query names no occluder). `bvh-single` and `bvh`: the same queries with 4-wide BVHs under the instances (`--accel bvh`); goal: `bvh` >= `embree-packet`.\n\n| scene | rays | count | kd-single Mrays/s | kd Mrays/s | kd / kd-single | goal {PACKETS_VS_SINGLE}x | embree Mrays/s | embree-packet Mrays/s | kd / embree-packet | bvh-single Mrays/s | bvh Mrays/s | bvh / embree-packet | goal bvh >= embree-packet |\n|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---|"
+    );
+    for k in &res.kinds {
+        let ratio = k.packet / k.single;
+        let met = verdict(ratio >= PACKETS_VS_SINGLE);
+        let (em, emp, vs) = k.embree.map_or(("-".into(), "-".into(), "-".into()), |(a, b)| {
+            (format!("{a:.2}"), format!("{b:.2}"), format!("{:.2}x", k.packet / b))
+        });
+        let (bs, bp) = k.bvh;
+        let (bvs, bgoal) = k
+            .embree
+            .map_or(("-".into(), "not measured (build without Embree)"), |(_, b)| {
+                (format!("{:.2}x", bp / b), verdict(bp >= b))
+            });
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {:.2} | {ratio:.2}x | {met} | {em} | {emp} | {vs} | {bs:.2} | {bp:.2} | {bvs} | {bgoal} |",
+            k.scene, k.kind, k.rays, k.single, k.packet
+        );
+    }
+}
+
+/// The paper's table beside this run's, and thread scaling.
+fn paper_tables(md: &mut String, rows: &[&Row]) {
+    let _ = writeln!(
+        md,
+        "\n## Beside the paper (Wald, Benthin & Slusallek 2003)\n\nThe paper's columns count rendering clients of 2 CPUs each: its \"1\" is 2 CPUs and its \"16\" is 32. Per CPU, its single client gave half its frame rate; compare that with one thread here.\n\n| scene | mode | paper, 1 client (2 CPUs) | 2 (4) | 4 (8) | 8 (16) | 16 (32) | paper per CPU | here, 1 thread | here, max threads | scaling |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
+    for (scene, mode, p) in PAPER {
+        let here: Vec<&Row> = rows
+            .iter()
+            .copied()
+            .filter(|r| r.scene == *scene && r.mode == *mode)
+            .collect();
+        let one = here.iter().find(|r| r.threads == 1).map(|r| r.fps());
+        let max = here.iter().max_by_key(|r| r.threads).map(|r| (r.threads, r.fps()));
+        let f = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+        let scaling = match (one, max) {
+            (Some(a), Some((t, b))) if t > 1 => format!("{:.2}x on {t}", b / a),
+            _ => "-".into(),
+        };
+        let paper = |v: f64| if v.is_nan() { "-".to_string() } else { format!("{v}") };
+        let _ = writeln!(
+            md,
+            "| {scene} | {mode} | {} | {} | {} | {} | {} | {:.3} | {} | {} | {scaling} |",
+            paper(p[0]),
+            paper(p[1]),
+            paper(p[2]),
+            paper(p[3]),
+            paper(p[4]),
+            p[0] / 2.0,
+            f(one),
+            f(max.map(|m| m.1))
+        );
+    }
+    // Thread scaling: every measured thread count, beside the paper's 1..16 CPUs.
+    let counts: Vec<usize> = {
+        let mut c: Vec<usize> = rows.iter().map(|r| r.threads).collect();
+        c.sort_unstable();
+        c.dedup();
+        c
+    };
+    if counts.len() > 2 {
+        let heads: Vec<String> = counts.iter().map(|t| format!("{t} thr")).collect();
+        let _ = writeln!(
+            md,
+            "\n## Thread scaling (fps; speedup and parallel efficiency against 1 thread)\n\n| scene | mode | {} | speedup | efficiency | paper speedup 1 -> 16 clients (2 -> 32 CPUs) |\n|---|---|{}---:|---:|---:|",
+            heads.join(" | "),
+            "---:|".repeat(counts.len())
+        );
+        let mut pairs: Vec<(&str, &str)> = Vec::new();
+        for r in rows {
+            if !pairs.contains(&(r.scene.as_str(), r.mode)) {
+                pairs.push((r.scene.as_str(), r.mode));
+            }
+        }
+        for (scene, mode) in pairs {
+            let at = |t: usize| {
+                rows.iter()
+                    .find(|r| r.scene == scene && r.mode == mode && r.threads == t)
+                    .map(|r| r.fps())
+            };
+            let cells: Vec<String> = counts
+                .iter()
+                .map(|&t| at(t).map_or("-".into(), |v| format!("{v:.2}")))
+                .collect();
+            let max = *counts.last().unwrap_or(&1);
+            let (speedup, eff) = match (at(1), at(max)) {
+                (Some(a), Some(b)) if a > 0.0 => {
+                    (format!("{:.2}x", b / a), format!("{:.0}%", 100.0 * b / a / max as f64))
+                }
+                _ => ("-".into(), "-".into()),
+            };
+            let paper = PAPER
+                .iter()
+                .find(|(s, m, _)| *s == scene && *m == mode)
+                .map_or("-".into(), |(_, _, p)| format!("{:.2}x", p[4] / p[0]));
+            let _ = writeln!(
+                md,
+                "| {scene} | {mode} | {} | {speedup} | {eff} | {paper} |",
+                cells.join(" | ")
+            );
+        }
+    }
+}
+
+/// Every goal's verdict.
+fn target_list(md: &mut String, res: &Results) {
+    let _ = writeln!(md, "\n## Targets (this machine)\n");
+    for t in targets(res, Backend::Kd.name()) {
+        let _ = writeln!(md, "{}", t.line());
+    }
+    // Packets against single rays, per ray kind over the scenes.
+    for kind in ["primary", "shadow"] {
+        let of_kind: Vec<(&String, f64)> = res
+            .kinds
+            .iter()
+            .filter(|k| k.kind == kind)
+            .map(|k| (&k.scene, k.packet / k.single))
+            .collect();
+        if of_kind.is_empty() {
+            continue;
+        }
+        let met: Vec<&str> = of_kind
+            .iter()
+            .filter(|(_, r)| *r >= PACKETS_VS_SINGLE)
+            .map(|(n, _)| n.as_str())
+            .collect();
+        let lo = of_kind.iter().map(|(_, r)| *r).fold(f64::INFINITY, f64::min);
+        let hi = of_kind.iter().map(|(_, r)| *r).fold(0.0, f64::max);
+        let verdict = if met.len() == of_kind.len() {
+            "met on every scene".to_string()
+        } else if met.is_empty() {
+            "**not met** on any scene".to_string()
+        } else {
+            format!(
+                "**not met** on {} of {} scenes (met on {})",
+                of_kind.len() - met.len(),
+                of_kind.len(),
+                met.join(", ")
+            )
+        };
+        let _ = writeln!(
+            md,
+            "- {kind} rays in packets against single rays (ray queries table): {lo:.2}-{hi:.2}x over {} scenes (goal {PACKETS_VS_SINGLE} x): {verdict}",
+            of_kind.len()
+        );
+    }
+    let _ = writeln!(
+        md,
+        "- ray throughput against Embree: single mesh in docs/PERFORMANCE.md (`cargo bench -p openrt-accel --bench kdtree --features embree`, which measures it); two-level scenes in the side-by-side table below."
+    );
+}
+
+/// Speed against error on one scene.
+fn quality_section(md: &mut String, run: &QualityRun) {
+    let (name, f, reference_s, q) = (&run.scene, run.frame, run.reference_s, &run.rows);
+    let _ = writeln!(
+        md,
+        "\n### {name} (frame {f})\n\nReference: Whitted depth 8, {REFERENCE_SPP} samples per pixel, trilinear textures ({reference_s:.0} s to render). Every row differs from the default (Whitted depth 3, 1 sample per pixel, trilinear) in one setting; lower resolutions are upsampled (nearest) before comparison.\n\n| setting | render ms | RMSE | PSNR dB |\n|---|---:|---:|---:|"
+    );
+    for x in q {
+        let _ = writeln!(md, "| {} | {:.1} | {:.4} | {:.1} |", x.label, x.ms, x.rmse, x.psnr);
+    }
+    let cheapest = q
+        .iter()
+        .filter(|x| x.psnr >= CLOSE_DB)
+        .min_by(|a, b| a.ms.total_cmp(&b.ms));
+    if let Some(c) = cheapest {
+        let _ = writeln!(
+            md,
+            "\nThe cheapest setting within {CLOSE_DB} dB of the reference: **{}** ({:.1} ms, {:.1} dB).",
+            c.label, c.ms, c.psnr
+        );
+    } else {
+        let best = q.iter().max_by(|a, b| a.psnr.total_cmp(&b.psnr));
+        let _ = writeln!(
+            md,
+            "\nNo setting is within {CLOSE_DB} dB of the reference; the closest is {}.",
+            best.map_or("-".into(), |b| format!(
+                "{} ({:.1} dB, {:.1} ms)",
+                b.label, b.psnr, b.ms
+            ))
+        );
+    }
+    let row = |l: &str| q.iter().find(|x| x.label.starts_with(l));
+    if let (Some(tri), Some(bi)) = (row("Whitted depth 3 (trilinear"), row("depth 3, bilinear")) {
+        let (e, c) = (tri.rmse / bi.rmse, tri.ms / bi.ms);
+        let goal = if name == "robots" {
+            format!(
+                " (goal for the robots: error at most x{TRILINEAR_ERROR_RATIO} for at most x{TRILINEAR_TIME_RATIO}: {})",
+                verdict(e <= TRILINEAR_ERROR_RATIO && c <= TRILINEAR_TIME_RATIO)
+            )
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            md,
+            "Trilinear against bilinear at 1 sample: error x{e:.2}, frame time x{c:.2}{goal}."
+        );
+    }
+    if let Some(w) = &run.worst {
+        match &w.file {
+            Ok(file) => {
+                let _ = writeln!(
+                    md,
+                    "\nThe worst row, {} (RMSE {:.4}), against the reference, differences x4:\n\n![{name}: worst row against the reference]({file})",
+                    w.label, w.rmse
+                );
+            }
+            Err(e) => {
+                let _ = writeln!(md, "\n(difference image not written: {e})");
+            }
+        }
+    }
+    let o = &run.oracle;
+    let _ = writeln!(
+        md,
+        "\nNumerical error of the accelerated path on {name} (frame {f}): {} sampled primary rays checked against the brute-force f64 oracle over {} world-space triangles: **{} disagree beyond rounding tolerance ({:.3}%)**; {} ({:.2}%) report a different first triangle than the exact f64 answer, all within the tolerance (shared edges, coplanar overlaps, grazing hits).",
+        o.checked,
+        o.triangles,
+        o.failed,
+        100.0 * o.failed as f64 / o.checked.max(1) as f64,
+        o.other_prim,
+        100.0 * o.other_prim as f64 / o.checked.max(1) as f64
+    );
+}
+
+/// Fast (refitted or afresh), SAH and BVH structures for the museums' moving triangles.
+fn builder_sections(md: &mut String, res: &Results) {
+    if res.builders.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Moving objects: fast, refitted and SAH trees\n\nThe museums' moving triangles under each builder (`Context::set_refit`, `Context::set_redefinition_builder`; the BVH rows with `Context::set_accel`), each sampled frame committed right after the two frames before it, as when the animation plays; same triangles, so the cost moves between commit and render. The builders take turns frame by frame (the first of them changing from frame to frame), so that the machine's phases fall on all of them alike."
+    );
+    for b in &res.builders {
+        let _ = writeln!(
+            md,
+            "\n### {}\n\n| moving-object builder | commit ms (median) | Whitted render ms | frame ms |\n|---|---:|---:|---:|",
+            b.scene
+        );
+        for r in &b.rows {
+            let _ = writeln!(
+                md,
+                "| {} | {:.2} | {:.1} | {:.1} |",
+                r.label,
+                r.commit_ms,
+                r.render_ms,
+                r.commit_ms + r.render_ms
+            );
+        }
+    }
+}
+
+/// The museums' moving triangles rebuilt by each builder, against Embree LOW.
+fn rebuild_table(md: &mut String, res: &Results) {
+    if res.rebuilds.is_empty() {
+        return;
+    }
+    let threads = res.rebuild_threads;
+    let _ = writeln!(
+        md,
+        "\n## Rebuilding the moving triangles ({threads} threads)\n\nEvery other frame of each museum's animation, in order; per frame the moving triangles (handed over as a commit hands them: moved, so their copy is not timed; Embree copies them into its own buffer, timed), each build run where a commit runs it (on the {threads}-thread pool from {} triangles up, below that on the calling thread: `BspBuilder::install_build`), are built afresh by the fast builder, refitted on the last frame's tree (`KdTree::refit_fast`: the old split planes with the new triangles, leaves that overflow split further, rebuilt afresh when the SAH cost exceeds {:.2}x the last full build's; what a commit does by default), and{} built by Embree at LOW quality; medians. SAH cost: expected steps and tests per ray (`KdTree::sah_cost`), mean over the frames. The BVH columns: the same triangles built afresh (`Bvh::build`) and refitted on the last frame's BVH (`Bvh::refit`, rebuilt past {:.2}x the last build's SAH cost); goal: BVH refit <= Embree LOW.\n\n| scene | triangles | fast afresh ms | refit ms | refitted frames | Embree LOW ms | Embree / refit | SAH cost afresh | SAH cost refit | BVH afresh ms | BVH refit ms | BVH refitted frames | Embree LOW / BVH refit | goal |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+        openrt_accel::PARALLEL_MIN,
+        openrt_accel::DEFAULT_REFIT_COST_LIMIT,
+        if cfg!(feature = "embree") {
+            ""
+        } else {
+            " (with `--features embree`)"
+        },
+        openrt_accel::BVH_REFIT_COST_LIMIT
+    );
+    for r in &res.rebuilds {
+        let (e, ratio) = match r.embree_ms {
+            Some(e) => (format!("{e:.3}"), format!("{:.2}", e / r.refit_ms.max(1e-9))),
+            None => ("-".into(), "-".into()),
+        };
+        let (bvh_ratio, goal) = match r.embree_ms {
+            Some(e) => (
+                format!("{:.2}", e / r.bvh_refit_ms.max(1e-9)),
+                verdict(r.bvh_refit_ms <= e),
+            ),
+            None => ("-".into(), "not measured (build without Embree)"),
+        };
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.3} | {:.3} | {} / {} | {e} | {ratio} | {:.2} | {:.2} | {:.3} | {:.3} | {} / {} | {bvh_ratio} | {goal} |",
+            r.scene,
+            r.triangles,
+            r.fresh_ms,
+            r.refit_ms,
+            r.refits,
+            r.frames,
+            r.fresh_cost,
+            r.refit_cost,
+            r.bvh_ms,
+            r.bvh_refit_ms,
+            r.bvh_refits,
+            r.frames
+        );
+    }
+}
+
+/// The same frames through an Embree two-level scene (builds with `--features embree`).
+fn embree_table(md: &mut String, res: &Results) {
+    if !cfg!(feature = "embree") {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Side by side with Embree 3 (two-level, single rays, 1 thread)\n\nSame frames, same primary rays; Embree: one scene per object (HIGH quality, LOW for objects rebuilt every frame) instanced in a top-level scene updated per frame.\n\n| scene | OpenRT-rs commit ms | Embree update ms | commit ratio (Embree/ours) | OpenRT-rs Mrays/s | Embree Mrays/s | throughput ratio (ours/Embree) |\n|---|---:|---:|---:|---:|---:|---:|"
+    );
+    for e in &res.embree {
+        let _ = writeln!(
+            md,
+            "| {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            e.scene,
+            e.ours_commit_ms,
+            e.embree_update_ms,
+            e.embree_update_ms / e.ours_commit_ms.max(1e-9),
+            e.ours_mrays,
+            e.embree_mrays,
+            e.ours_mrays / e.embree_mrays
+        );
+    }
+}
