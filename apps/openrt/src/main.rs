@@ -54,6 +54,7 @@ fn render_frame(
             render_ms: net.render_ms,
             mrays_per_s: rays.total() as f64 / (net.render_ms * 1e3).max(1e-3),
             threads: renderer.threads(),
+            phases: None,
         };
         let figures = serde_json::json!({
             "ranks": c.workers() + 1,
@@ -165,6 +166,10 @@ enum Command {
         /// Scene time of an animated scene.
         #[arg(long)]
         time: Option<f32>,
+        /// Prints the frame's time split by phase (camera rays, queries by
+        /// kind, surfaces, textures, light loop, image); the same image.
+        #[arg(long)]
+        phases: bool,
     },
     /// Measures the paper's table, speed against error and builder trade-offs; writes docs/BENCHMARKS.md.
     Bench {
@@ -436,6 +441,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             quality,
             frame,
             time,
+            phases,
         } => {
             let mut player = open_scene(scene.as_deref(), strict)?;
             commit_threads(&mut player, &quality)?;
@@ -453,10 +459,27 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             };
             let commit = player.set_time(t).map_err(|e| e.to_string())?;
             let s = settings(&player, &quality);
-            let renderer = renderer(&mut player, &quality)?;
+            let mut renderer = renderer(&mut player, &quality)?;
+            renderer.set_phase_timing(phases);
             let mut img = Image::default();
             let (stats, net) = render_frame(&mut player, t, &s, &renderer, cluster, &mut img)?;
             save_png(&output, &img)?;
+            if let Some(p) = stats.phases {
+                let ms = |ns: u64| ns as f64 / 1e6;
+                println!(
+                    "phases (ms, summed over threads): camera {:.2}, primary {:.2}, shadow {:.2}, bounce {:.2}, surface {:.2}, textures {:.2}, light loop {:.2}, image {:.2}",
+                    ms(p.camera_ns),
+                    ms(p.primary_ns),
+                    ms(p.shadow_ns),
+                    ms(p.bounce_ns),
+                    ms(p.surface_ns),
+                    ms(p.textures_ns),
+                    ms(p.lights_ns),
+                    ms(p.image_ns)
+                );
+            } else if phases {
+                println!("phases: not timed (a distributed frame is timed by its ranks)");
+            }
             if let Some(net) = net {
                 println!("distributed: {net}");
             }

@@ -88,6 +88,7 @@ mod material;
 mod matrix_stack;
 mod object;
 mod occluder_hint;
+mod phases;
 mod pool;
 mod primitive;
 mod render;
@@ -114,6 +115,7 @@ pub use limits::{
 pub use material::Material;
 pub use matrix_stack::{MATRIX_STACK_LIMIT, MatrixStack};
 pub use object::{Accel, ObjectGeometry, ObjectMesh, ObjectTree, ShadingData};
+pub use phases::PhaseTimes;
 pub use pool::ThreadPool;
 pub use primitive::PrimitiveKind;
 pub use render::{

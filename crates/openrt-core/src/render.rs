@@ -13,6 +13,7 @@ use parking_lot::Mutex;
 
 use crate::camera::CameraRays;
 use crate::occluder_hint::OccluderHint;
+use crate::phases::{Phase, PhaseClock, PhaseTimes};
 use crate::shade::{Cone, ShadedBlock, Shader};
 use crate::tracer::Tracer;
 use crate::{
@@ -171,6 +172,9 @@ pub struct FrameStats {
     pub mrays_per_s: f64,
     /// Worker threads used.
     pub threads: usize,
+    /// The frame's time by phase, summed over the threads, when the renderer
+    /// times phases ([`Renderer::set_phase_timing`]); `None` otherwise.
+    pub phases: Option<PhaseTimes>,
 }
 
 struct FrameJob<'a> {
@@ -187,12 +191,15 @@ struct FrameJob<'a> {
     /// The tiles to render (all `n_tiles` of the frame when `None`).
     list: Option<Vec<u32>>,
     next: AtomicUsize,
+    /// Time the phases of each tile.
+    timing: bool,
 }
 
 struct TileResult {
     index: usize,
     pixels: Vec<Vec3>,
     counts: RayCounts,
+    phases: PhaseTimes,
 }
 
 /// Renders frames on a [`ThreadPool`]. Images are bit-identical whatever
@@ -202,6 +209,7 @@ pub struct Renderer {
     pool: ThreadPool,
     backend: Backend,
     width: PacketWidth,
+    timing: bool,
     /// The Embree scene kept in step with the frames (Embree backends).
     #[cfg(feature = "embree")]
     embree: Arc<std::sync::RwLock<crate::embree_backend::EmbreeScene>>,
@@ -228,6 +236,7 @@ impl Renderer {
             pool,
             backend: Backend::default(),
             width: PacketWidth::detect(),
+            timing: false,
             #[cfg(feature = "embree")]
             embree: Arc::default(),
         }
@@ -248,6 +257,14 @@ impl Renderer {
     /// [`PacketWidth::detect`]); images do not depend on it.
     pub fn set_packet_width(&mut self, width: PacketWidth) {
         self.width = width;
+    }
+
+    /// Times each frame's phases ([`FrameStats::phases`]): camera rays,
+    /// queries by kind, surfaces, textures, the light loop, the image. Off by
+    /// default; when off, each clock costs one predictable branch. The
+    /// images are the same bytes either way.
+    pub fn set_phase_timing(&mut self, on: bool) {
+        self.timing = on;
     }
 
     /// The packet width in use.
@@ -297,16 +314,19 @@ impl Renderer {
         image: &mut Image,
     ) -> Result<FrameStats, CoreError> {
         let start = Instant::now();
-        let (tiles, rays) = self.render_tiles(scene, env, camera, settings, None)?;
+        let (tiles, rays, mut phases) = self.render_tiles_timed(scene, env, camera, settings, None)?;
+        let assembly = Instant::now();
         self.pool
             .rayon()
             .install(|| assemble_into(settings, tiles.iter().map(|t| (t.0, t.1.as_slice())), image));
+        phases.image_ns = u64::try_from(assembly.elapsed().as_nanos()).unwrap_or(u64::MAX);
         let secs = start.elapsed().as_secs_f64();
         Ok(FrameStats {
             rays,
             render_ms: secs * 1e3,
             mrays_per_s: rays.total() as f64 / secs.max(1e-9) / 1e6,
             threads: self.pool.threads(),
+            phases: self.timing.then_some(phases),
         })
     }
 
@@ -327,6 +347,20 @@ impl Renderer {
         settings: &RenderSettings,
         only: Option<&[u32]>,
     ) -> Result<(Vec<RenderedTile>, RayCounts), CoreError> {
+        self.render_tiles_timed(scene, env, camera, settings, only)
+            .map(|(tiles, rays, _)| (tiles, rays))
+    }
+
+    /// [`Renderer::render_tiles`] with the tiles' phase times (zero unless
+    /// the renderer times phases).
+    fn render_tiles_timed(
+        &self,
+        scene: &Scene,
+        env: &Environment,
+        camera: &Camera,
+        settings: &RenderSettings,
+        only: Option<&[u32]>,
+    ) -> Result<(Vec<RenderedTile>, RayCounts, PhaseTimes), CoreError> {
         settings.validate("render")?;
         let cam = camera.rays(settings.width, settings.height)?;
         // The Embree peer's own commit counts as part of its frame.
@@ -362,6 +396,7 @@ impl Renderer {
             n_tiles,
             list,
             next: AtomicUsize::new(0),
+            timing: self.timing,
         };
         let results: Mutex<Vec<TileResult>> = Mutex::new(Vec::with_capacity(n_tiles));
         let failure: Mutex<Option<String>> = Mutex::new(None);
@@ -402,12 +437,14 @@ impl Renderer {
             });
         }
         let mut rays = RayCounts::default();
+        let mut phases = PhaseTimes::default();
         let mut out = Vec::with_capacity(n_tiles);
         for tile in tiles {
             rays.add(&tile.counts);
+            phases.merge(&tile.phases);
             out.push((tile.index as u32, tile.pixels));
         }
-        Ok((out, rays))
+        Ok((out, rays, phases))
     }
 }
 
@@ -517,6 +554,10 @@ fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
         }
         let index = job.list.as_ref().map_or(k, |l| l[k] as usize);
         shader.counts = RayCounts::default();
+        shader.clock = PhaseClock {
+            on: job.timing,
+            times: PhaseTimes::default(),
+        };
         // NOTE: a tile's hints start empty, so that they depend on nothing
         // outside the tile (they never change an answer either way).
         shader.occluders.fill(OccluderHint::new());
@@ -535,7 +576,15 @@ fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
                         let mut sum = Vec3::ZERO;
                         for &(ox, oy) in &offsets {
                             shader.counts.primary += 1;
-                            sum += shader.trace(&job.cam.ray_at(x, y, ox, oy), cone, 0);
+                            let ray = if job.timing {
+                                let t = PhaseClock::start::<true>();
+                                let ray = job.cam.ray_at(x, y, ox, oy);
+                                shader.clock.stop::<true>(t, Phase::Camera);
+                                ray
+                            } else {
+                                job.cam.ray_at(x, y, ox, oy)
+                            };
+                            sum += shader.trace(&ray, cone, 0);
                         }
                         pixels[tile.index(x, y)] = average(sum, spp);
                     }
@@ -556,6 +605,7 @@ fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
             index,
             pixels,
             counts: shader.counts,
+            phases: shader.clock.times,
         });
     }
 }
@@ -633,7 +683,11 @@ fn packet_tile<const N: usize, T: Tracer>(
         // One packet per block and sample: the block's rays through the
         // same sub-pixel position stay coherent.
         for (b, ((at, lanes), s)) in blocks.iter().zip(&mut sum).enumerate() {
+            let t = if job.timing { PhaseClock::start::<true>() } else { None };
             let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray_at(at[l].0, at[l].1, ox, oy));
+            if job.timing {
+                shader.clock.stop::<true>(t, Phase::Camera);
+            }
             shader.counts.primary += u64::from(lanes.count_ones());
             let out = &mut shaded[if bounces { b } else { 0 }];
             shader.shade_block(&rays, &cones, *lanes, 0, out);

@@ -6,6 +6,7 @@ use openrt_accel::{Ray, lanes_of, sign_groups};
 use crate::highlight::highlight_powers;
 use crate::light_quad::{LightQuad, light_terms};
 use crate::occluder_hint::OccluderHint;
+use crate::phases::{Phase, PhaseClock};
 use crate::tracer::Tracer;
 use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
@@ -140,6 +141,8 @@ pub(crate) struct Shader<'a, T: Tracer = Scene> {
     /// Bit `j`: light `j` (of the first 64) has a finite colour, so a zero
     /// times it is a zero ([`Shader::silent_lights`]).
     pub finite_lights: u64,
+    /// The time by phase, when the renderer asks for it.
+    pub clock: PhaseClock,
 }
 
 impl<'a, T: Tracer> Shader<'a, T> {
@@ -175,6 +178,7 @@ impl<'a, T: Tracer> Shader<'a, T> {
                 .take(64)
                 .enumerate()
                 .fold(0, |m, (j, l)| m | (u64::from(l.color.is_finite()) << j)),
+            clock: PhaseClock::default(),
         }
     }
 }
@@ -206,7 +210,7 @@ const MAX_PASS_THROUGH: u32 = 16;
 /// A primary or secondary hit made ready for shading: everything the light
 /// loop and the bounces need, computed once. Splitting shading here lets a
 /// packet of pixels trace its shadow rays together between [`Shader::prepare`]
-/// and [`Shader::finish`], with the same arithmetic as one pixel alone.
+/// and [`Shader::finish_as`], with the same arithmetic as one pixel alone.
 pub(crate) struct Prepared {
     surf: Surface,
     /// Unit direction of the incoming ray.
@@ -230,8 +234,21 @@ pub(crate) struct Prepared {
 impl<T: Tracer> Shader<'_, T> {
     /// Radiance along `ray` with its cone (`depth` = number of bounces so far).
     pub fn trace(&mut self, ray: &Ray, cone: Cone, depth: u32) -> Vec3 {
+        if self.clock.on {
+            self.trace_as::<true>(ray, cone, depth)
+        } else {
+            self.trace_as::<false>(ray, cone, depth)
+        }
+    }
+
+    /// [`Shader::trace`] with the phase clock on (`ON`) or compiled out.
+    fn trace_as<const ON: bool>(&mut self, ray: &Ray, cone: Cone, depth: u32) -> Vec3 {
+        let t = PhaseClock::start::<ON>();
         let hit = self.tracer.intersect(ray);
-        let Some(prep) = self.prepare(ray, cone, hit.as_ref()) else {
+        let t = self.clock.stop::<ON>(t, query_phase(depth));
+        let prep = self.prepare(ray, cone, hit.as_ref());
+        let t = self.clock.stop::<ON>(t, Phase::Surface);
+        let Some(prep) = prep else {
             return self.env.background;
         };
         // PERF: one bit per light on the stack; a scene with more lights
@@ -254,7 +271,10 @@ impl<T: Tracer> Shader<'_, T> {
                 }
             }
         }
-        self.finish(
+        if self.mode == RenderMode::Whitted {
+            self.clock.stop::<ON>(t, Phase::Shadow);
+        }
+        self.finish_as::<ON>(
             &prep,
             |j| list.get(j).copied().unwrap_or(bits & (1 << (j & 63)) != 0),
             depth,
@@ -399,23 +419,28 @@ impl<T: Tracer> Shader<'_, T> {
 
     /// The radiance of a prepared hit, with `blocked(j)` telling whether
     /// light `j`'s shadow ray (from [`Shader::shadow_ray`]) is occluded;
-    /// traces the reflection and refraction rays below `max_depth`.
-    pub fn finish(&mut self, prep: &Prepared, blocked: impl Fn(usize) -> bool, depth: u32) -> Vec3 {
+    /// traces the reflection and refraction rays below `max_depth`; the
+    /// phase clock on (`ON`) or compiled out.
+    fn finish_as<const ON: bool>(&mut self, prep: &Prepared, blocked: impl Fn(usize) -> bool, depth: u32) -> Vec3 {
         let mut bounces = [None; 2];
-        let mut color = self.local(prep, blocked, depth, &mut bounces);
+        let mut color = self.local_as::<ON>(prep, blocked, depth, &mut bounces);
         for (weight, ray) in bounces.into_iter().flatten() {
-            color += weight * self.trace(&ray, prep.cone, depth + 1);
+            color += weight * self.trace_as::<ON>(&ray, prep.cone, depth + 1);
         }
         color
     }
 
-    /// The local part of [`Shader::finish`]: ambient and lights; the
+    /// The local part of [`Shader::finish_as`]: ambient and lights; the
     /// bounces still to trace are written to `bounces`, refraction first,
     /// each with the weight of its radiance (added in this order by the
     /// caller), `None` where there is none.
     // PERF: the bounces are written in place: returned with the colour,
     // each lane's pair was copied by a `memcpy` call (in GL-like frames
     // too, where they are always `None`).
+    // PERF: textures and lights timed per hit here rather than in two passes
+    // over a packet's lanes: the second pass (texels kept in an array) made
+    // kitchen GL-like frames a few per cent slower side by side.
+    #[cfg_attr(not(test), allow(dead_code))]
     pub fn local(
         &mut self,
         prep: &Prepared,
@@ -423,12 +448,40 @@ impl<T: Tracer> Shader<'_, T> {
         depth: u32,
         bounces: &mut Bounces,
     ) -> Vec3 {
+        if self.clock.on {
+            self.local_as::<true>(prep, blocked, depth, bounces)
+        } else {
+            self.local_as::<false>(prep, blocked, depth, bounces)
+        }
+    }
+
+    /// [`Shader::local`] with the phase clock on (`ON`) or compiled out.
+    // PERF: not marked inline, as `local` was before it was split in two.
+    fn local_as<const ON: bool>(
+        &mut self,
+        prep: &Prepared,
+        blocked: impl Fn(usize) -> bool,
+        depth: u32,
+        bounces: &mut Bounces,
+    ) -> Vec3 {
+        let t = PhaseClock::start::<ON>();
+        let tex = self.texel(prep);
+        let t = self.clock.stop::<ON>(t, Phase::Textures);
+        let color = self.local_lit(prep, tex, blocked, depth, bounces);
+        self.clock.stop::<ON>(t, Phase::Lights);
+        color
+    }
+
+    /// The texture's colour at a prepared hit (white without a texture):
+    /// the level of detail from the ray cone, then the filtered lookup.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub fn texel(&self, prep: &Prepared) -> Vec3 {
         let scene = self.scene;
         let surf = &prep.surf;
-        let (d, back, nf, ns, p_out) = (prep.d, prep.back, prep.nf, prep.ns, prep.p_out);
+        let (d, nf) = (prep.d, prep.nf);
         let mat = &scene.materials()[surf.material.index() as usize];
-        let tex = mat
-            .texture
+        mat.texture
             .and_then(|t| scene.textures().get(t.index() as usize))
             .map_or(Vec3::ONE, |t| {
                 if self.filter != TextureFilter::Trilinear {
@@ -442,7 +495,24 @@ impl<T: Tracer> Shader<'_, T> {
                 let (w, cos) = (prep.cone.width, d.dot(nf));
                 let lod = 0.5 * (texel_area * w * w / (surf.world_area * cos * cos)).log2();
                 t.sample_filtered(surf.uv, lod, self.filter)
-            });
+            })
+    }
+
+    /// [`Shader::local`] with the hit's texel ([`Shader::texel`]) given.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub fn local_lit(
+        &mut self,
+        prep: &Prepared,
+        tex: Vec3,
+        blocked: impl Fn(usize) -> bool,
+        depth: u32,
+        bounces: &mut Bounces,
+    ) -> Vec3 {
+        let scene = self.scene;
+        let surf = &prep.surf;
+        let (d, back, nf, ns, p_out) = (prep.d, prep.back, prep.nf, prep.ns, prep.p_out);
+        let mat = &scene.materials()[surf.material.index() as usize];
         let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
         let view = -d;
         let (highlights, floor) = self.highlights(surf);
@@ -533,12 +603,31 @@ impl<T: Tracer> Shader<'_, T> {
         depth: u32,
         block: &mut ShadedBlock<N>,
     ) {
+        if self.clock.on {
+            self.shade_block_as::<N, true>(rays, cones, lanes, depth, block);
+        } else {
+            self.shade_block_as::<N, false>(rays, cones, lanes, depth, block);
+        }
+    }
+
+    /// [`Shader::shade_block`] with the phase clock on (`ON`) or compiled out.
+    fn shade_block_as<const N: usize, const ON: bool>(
+        &mut self,
+        rays: &[Ray; N],
+        cones: &[Cone; N],
+        lanes: u32,
+        depth: u32,
+        block: &mut ShadedBlock<N>,
+    ) {
+        let t = PhaseClock::start::<ON>();
         let hits = self.tracer.intersect_packet(rays, lanes);
+        let t = self.clock.stop::<ON>(t, query_phase(depth));
         // PERF: filled in place (`from_fn` moved each lane's result twice).
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
         for l in lanes_of(lanes) {
             preps[l] = self.prepare(&rays[l], cones[l], hits[l].as_ref());
         }
+        let t = self.clock.stop::<ON>(t, Phase::Surface);
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
             blocked.reserve(self.env.lights.len());
@@ -560,10 +649,14 @@ impl<T: Tracer> Shader<'_, T> {
                 });
             }
         }
+        // GL-like frames trace no shadow rays: no span for them.
+        if self.mode == RenderMode::Whitted {
+            self.clock.stop::<ON>(t, Phase::Shadow);
+        }
         block.lanes = lanes;
         for l in lanes_of(lanes) {
             if let Some(p) = &preps[l] {
-                block.color[l] = self.local(
+                block.color[l] = self.local_as::<ON>(
                     p,
                     |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0),
                     depth,
@@ -735,6 +828,12 @@ fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
 #[inline]
 fn reflect(d: Vec3, n: Vec3) -> Vec3 {
     d - 2.0 * d.dot(n) * n
+}
+
+/// The query phase of a ray `depth` bounces deep.
+#[inline]
+fn query_phase(depth: u32) -> Phase {
+    if depth == 0 { Phase::Primary } else { Phase::Bounce }
 }
 
 #[cfg(test)]

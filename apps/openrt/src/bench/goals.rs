@@ -35,6 +35,10 @@ pub(super) const PACKETS_VS_SINGLE: f64 = 3.0;
 pub(super) const TRILINEAR_ERROR_RATIO: f64 = 0.5;
 /// ... for a frame time ratio at most.
 pub(super) const TRILINEAR_TIME_RATIO: f64 = 1.15;
+/// Kitchen, OpenGL-like: time outside the ray queries per pixel, at most (ns).
+pub(super) const KITCHEN_GL_OUTSIDE_QUERIES_NS: f64 = 95.0;
+/// Whitted frames: shading's share of the frame, at most (per cent).
+pub(super) const WHITTED_SHADING_SHARE_PCT: f64 = 15.0;
 /// Samples per pixel of the speed-against-error reference.
 pub(super) const REFERENCE_SPP: u32 = 64;
 /// PSNR that counts as "close to the reference" in the report.
@@ -142,6 +146,32 @@ pub(super) fn targets(results: &Results, default_backend: &str) -> Vec<Target> {
                 false,
             ));
         }
+    }
+    let default_phase = |scene: &str, mode: &str| {
+        results
+            .phases
+            .iter()
+            .find(|p| p.scene == scene && p.mode == mode && p.backend == default_backend)
+    };
+    out.push(target(
+        "kitchen GL-like time outside the ray queries per pixel (phase table, one thread)".into(),
+        default_phase("kitchen", "GL-like").map(super::results::PhaseRow::outside_queries_ns_per_pixel),
+        KITCHEN_GL_OUTSIDE_QUERIES_NS,
+        "ns",
+        false,
+    ));
+    for p in results
+        .phases
+        .iter()
+        .filter(|p| p.mode == "Whitted" && p.backend == default_backend)
+    {
+        out.push(target(
+            format!("{} Whitted: shading's share of the frame (phase table)", p.scene),
+            Some(100.0 * p.shading_share()),
+            WHITTED_SHADING_SHARE_PCT,
+            "%",
+            false,
+        ));
     }
     let kitchen_whitted = |t: usize| {
         rows.iter()

@@ -17,7 +17,8 @@ use super::goals::REFERENCE_SPP;
 #[cfg(feature = "embree")]
 use super::results::EmbreeRow;
 use super::results::{
-    BuilderRow, BuilderRun, ImageDiff, KindRow, OracleCheck, Quality, QualityRun, Rebuild, Results, Row, WorstDiff,
+    BuilderRow, BuilderRun, ImageDiff, KindRow, OracleCheck, PhaseRow, Quality, QualityRun, Rebuild, Results, Row,
+    WorstDiff,
 };
 
 pub(super) fn median(mut v: Vec<f64>) -> f64 {
@@ -869,9 +870,11 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
         measure_scene(o, s, Accel::Bvh, &mut frames, &mut diffs, &mut reference)?;
     }
     let mut kinds = Vec::new();
+    let mut phase_rows = Vec::new();
     for name in &o.scenes {
-        eprintln!("bench: ray kinds on {name}");
+        eprintln!("bench: ray kinds and phases on {name}");
         kinds.extend(ray_kinds(o, name)?);
+        phase_rows.extend(phases(o, name)?);
     }
     let rebuilds = rebuilds(o)?;
     let mut builder_runs = Vec::new();
@@ -906,6 +909,7 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
     }
     Ok(Results {
         frames,
+        phases: phase_rows,
         diffs,
         kinds,
         quality,
@@ -916,4 +920,68 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
         lanes: crate::packet_width().lanes(),
         machine: machine(),
     })
+}
+
+/// The middle frame of `name` split into phases, one thread: each mode
+/// through the default backend over kd-trees and over BVHs, single rays,
+/// and Embree's packets (builds with `--features embree`). Each is rendered
+/// three times with the phase clocks on and three times off, alternating;
+/// the median timed frame's phases are reported.
+fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
+    let mut out = Vec::new();
+    for accel in [Accel::Kd, Accel::Bvh] {
+        let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+        player.ctx_mut().set_accel(accel);
+        player.ctx_mut().set_threads(1).map_err(|e| e.to_string())?;
+        let t = player.time_of(player.frames() / 2);
+        player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
+        player.set_time(t).map_err(|e| e.to_string())?;
+        let scene = player.ctx().scene();
+        let (env, cam) = (player.env(), player.camera(t));
+        let backends: Vec<Backend> = Backend::ALL
+            .iter()
+            .copied()
+            .filter(|&b| match accel {
+                Accel::Kd => b.name() != "embree",
+                Accel::Bvh => b == Backend::Kd,
+            })
+            .collect();
+        for backend in backends {
+            let mut r = crate::new_renderer(player.ctx_mut().pool().map_err(|e| e.to_string())?);
+            r.set_backend(backend);
+            for (mode, depth) in [(RenderMode::GlLike, 0), (RenderMode::Whitted, 3)] {
+                let s = settings(o, mode, depth);
+                // Warm-up (a peer builds its scene on its first frame).
+                r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?;
+                let (mut timed, mut untimed) = (Vec::new(), Vec::new());
+                for _ in 0..3 {
+                    r.set_phase_timing(true);
+                    let (_, st) = r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?;
+                    timed.push((st.render_ms, st.phases.unwrap_or_default()));
+                    r.set_phase_timing(false);
+                    untimed.push(r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?.1.render_ms);
+                }
+                timed.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let (timed_ms, phases) = timed[timed.len() / 2];
+                out.push(PhaseRow {
+                    scene: name.to_string(),
+                    mode: mode_name(mode),
+                    backend: label(accel, backend),
+                    timed_ms,
+                    untimed_ms: median(untimed),
+                    phases,
+                    pixels: u64::from(s.width) * u64::from(s.height),
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The report's name of a mode.
+fn mode_name(mode: RenderMode) -> &'static str {
+    match mode {
+        RenderMode::GlLike => "GL-like",
+        RenderMode::Whitted => "Whitted",
+    }
 }

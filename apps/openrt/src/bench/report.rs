@@ -17,6 +17,7 @@ pub(super) fn render(o: &BenchOptions, res: &Results, plot: &Result<String, Stri
     let mut md = String::new();
     frame_tables(&mut md, o, res);
     kind_table(&mut md, res);
+    phase_table(&mut md, res);
     // The tables below use the default backend.
     let rows: Vec<&Row> = res.frames.iter().filter(|r| r.backend == Backend::Kd.name()).collect();
     paper_tables(&mut md, &rows);
@@ -168,6 +169,42 @@ fn kind_table(md: &mut String, res: &Results) {
             md,
             "| {} | {} | {} | {:.2} | {:.2} | {ratio:.2}x | {met} | {em} | {emp} | {vs} | {bs:.2} | {bp:.2} | {bvs} | {bgoal} |",
             k.scene, k.kind, k.rays, k.single, k.packet
+        );
+    }
+}
+
+/// Each scene's middle frame split into phases.
+fn phase_table(md: &mut String, res: &Results) {
+    if res.phases.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Where a frame's time goes\n\nThe middle frame of each scene on one thread, split by the renderer's phase clocks (`Renderer::set_phase_timing`; `openrt render --phases` prints the same split): ms per phase, the median of three timed frames. Shadow rays include their set-up, the light loop the bounce rays' set-up; \"other\" is the tile loop, the bounces' pooling and the clocks themselves (the timed frame against the untimed one, same bytes, in the second column). Outside queries: everything but the primary, shadow and bounce queries, per pixel. Shading: surfaces, textures and light loop.\n\n| scene | mode | backend | frame ms (timed / untimed) | camera | primary | shadow | bounce | surface | textures | light loop | image | other | outside queries ns/pixel | shading share |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
+    for r in &res.phases {
+        let p = &r.phases;
+        let ms = |ns: u64| ns as f64 / 1e6;
+        let other = r.timed_ms - ms(p.total_ns());
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.1} / {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0}% |",
+            r.scene,
+            r.mode,
+            r.backend,
+            r.timed_ms,
+            r.untimed_ms,
+            ms(p.camera_ns),
+            ms(p.primary_ns),
+            ms(p.shadow_ns),
+            ms(p.bounce_ns),
+            ms(p.surface_ns),
+            ms(p.textures_ns),
+            ms(p.lights_ns),
+            ms(p.image_ns),
+            other,
+            r.outside_queries_ns_per_pixel(),
+            100.0 * r.shading_share()
         );
     }
 }

@@ -130,9 +130,35 @@ pub(super) struct EmbreeRow {
     pub(super) embree_mrays: f64,
 }
 
+/// One frame of a scene split into its phases (one thread, timed).
+pub(super) struct PhaseRow {
+    pub(super) scene: String,
+    pub(super) mode: &'static str,
+    pub(super) backend: &'static str,
+    /// Render time with the phase clocks on, and off (the same frame).
+    pub(super) timed_ms: f64,
+    pub(super) untimed_ms: f64,
+    pub(super) phases: openrt_core::PhaseTimes,
+    pub(super) pixels: u64,
+}
+
+impl PhaseRow {
+    /// Nanoseconds per pixel outside the ray queries (camera rays, shading,
+    /// the image, bookkeeping), from the timed frame.
+    pub(super) fn outside_queries_ns_per_pixel(&self) -> f64 {
+        (self.timed_ms * 1e6 - self.phases.queries_ns() as f64) / self.pixels.max(1) as f64
+    }
+
+    /// Surfaces, textures and the light loop as a share of the timed frame.
+    pub(super) fn shading_share(&self) -> f64 {
+        self.phases.shading_ns() as f64 / (self.timed_ms * 1e6).max(1.0)
+    }
+}
+
 /// Everything a run measured.
 pub(super) struct Results {
     pub(super) frames: Vec<Row>,
+    pub(super) phases: Vec<PhaseRow>,
     pub(super) diffs: Vec<ImageDiff>,
     pub(super) kinds: Vec<KindRow>,
     pub(super) quality: Vec<QualityRun>,
