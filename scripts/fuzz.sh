@@ -16,7 +16,7 @@ root=$(pwd)
 secs=${1:-60}
 shift || true
 targets=("$@")
-if [ ${#targets[@]} -eq 0 ]; then targets=(aff ron obj texture api); fi
+if [ ${#targets[@]} -eq 0 ]; then targets=(aff ron obj texture api gltf); fi
 jobs=${FUZZ_JOBS:-2}
 bart=${OPENRT_BART_DIR:-$root/../shared/bart}
 

@@ -650,24 +650,39 @@ impl<T: Tracer> Shader<'_, T> {
             }
         }
         // GL-like frames trace no shadow rays: no span for them.
-        if self.mode == RenderMode::Whitted {
-            self.clock.stop::<ON>(t, Phase::Shadow);
-        }
+        let t = if self.mode == RenderMode::Whitted {
+            self.clock.stop::<ON>(t, Phase::Shadow)
+        } else {
+            t
+        };
         block.lanes = lanes;
+        // Timed, the texels of every lane come first, then the light loop:
+        // two spans per packet rather than two per lane, whose clock reads
+        // would cost more than the lookups they time. Untimed, one pass.
+        let mut texels = [Vec3::ONE; N];
+        if ON {
+            for l in lanes_of(lanes) {
+                if let Some(p) = &preps[l] {
+                    texels[l] = self.texel(p);
+                }
+            }
+        }
+        let t = self.clock.stop::<ON>(t, Phase::Textures);
         for l in lanes_of(lanes) {
             if let Some(p) = &preps[l] {
-                block.color[l] = self.local_as::<ON>(
-                    p,
-                    |j| blocked.get(j).is_some_and(|m| m & (1 << l) != 0),
-                    depth,
-                    &mut block.bounces[l],
-                );
+                let blocked = |j: usize| blocked.get(j).is_some_and(|m| m & (1 << l) != 0);
+                block.color[l] = if ON {
+                    self.local_lit(p, texels[l], blocked, depth, &mut block.bounces[l])
+                } else {
+                    self.local_as::<false>(p, blocked, depth, &mut block.bounces[l])
+                };
                 block.cones[l] = p.cone;
             } else {
                 block.color[l] = self.env.background;
                 block.bounces[l] = [None; 2];
             }
         }
+        self.clock.stop::<ON>(t, Phase::Lights);
     }
 
     /// The bounces of shaded `blocks` ([`Shader::shade_block`], a tile's):

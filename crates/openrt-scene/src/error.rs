@@ -94,7 +94,12 @@ pub struct SceneWarning {
 
 impl std::fmt::Display for SceneWarning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}:{}:{}: {}", self.path.display(), self.line, self.col, self.msg)
+        // Formats without lines (glTF's JSON paths are in the message) give line 0.
+        if self.line == 0 {
+            write!(f, "{}: {}", self.path.display(), self.msg)
+        } else {
+            write!(f, "{}:{}:{}: {}", self.path.display(), self.line, self.col, self.msg)
+        }
     }
 }
 

@@ -15,6 +15,7 @@ pub mod aff;
 mod builtin;
 mod error;
 pub mod generate;
+mod gltf_scene;
 mod limits;
 mod loader;
 mod obj;
@@ -25,6 +26,7 @@ mod texture_io;
 
 pub use builtin::{DEFAULT_SCENE_RON, default_scene};
 pub use error::{SceneError, SceneWarning};
+pub use gltf_scene::{GLTF_FRAME_RATE, GLTF_SUPPORTED_REQUIRED, GltfPlayer};
 pub use limits::{
     MAX_ANIMART_TRIANGLES, MAX_BLOCK_NESTING, MAX_FILE_BYTES, MAX_FRAMES, MAX_HEADER_COUNT, MAX_INCLUDE_DEPTH,
     MAX_INCLUDES, MAX_SCENE_TRIANGLES, MAX_SPHERE_SEGMENTS, MAX_TERRAIN_GRID, MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS,

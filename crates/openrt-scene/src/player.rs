@@ -1,4 +1,4 @@
-//! One interface over every scene kind: static RON, animated RON and AFF.
+//! One interface over every scene kind: static RON, animated RON, AFF and glTF.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -6,6 +6,7 @@ use std::sync::Arc;
 use openrt_core::{Camera, CommitStats, Context, Environment, RenderSettings};
 
 use crate::aff::AffPlayer;
+use crate::gltf_scene::GltfPlayer;
 use crate::{LoadedScene, RonScene, SceneError, SceneWarning, default_scene, load_ron_any};
 
 /// A scene that can be stepped through time.
@@ -14,10 +15,13 @@ pub enum ScenePlayer {
     Ron(Box<LoadedScene>),
     /// A BART AFF scene.
     Aff(Box<AffPlayer>),
+    /// A glTF 2.0 scene (`.gltf` or `.glb`).
+    Gltf(Box<GltfPlayer>),
 }
 
 impl ScenePlayer {
-    /// Opens a scene by extension (`.aff` or `.ron`); `None` opens the built-in default scene.
+    /// Opens a scene by extension (`.aff`, `.ron`, `.gltf` or `.glb`); `None`
+    /// opens the built-in default scene.
     pub fn open(path: Option<&Path>) -> Result<Self, SceneError> {
         let Some(path) = path else {
             return Ok(Self::Ron(Box::new(default_scene()?)));
@@ -29,13 +33,14 @@ impl ScenePlayer {
             .as_deref()
         {
             Some("aff") => Ok(Self::Aff(Box::new(AffPlayer::load(path)?))),
+            Some("gltf" | "glb") => Ok(Self::Gltf(Box::new(GltfPlayer::load(path)?))),
             Some("ron") => Ok(match load_ron_any(path)? {
                 RonScene::Scene(s) => Self::Ron(s),
                 RonScene::Bart(a) => Self::Aff(a),
             }),
             _ => Err(SceneError::Invalid {
                 path: path.to_path_buf(),
-                what: "unknown scene type: expected a .ron or .aff file".into(),
+                what: "unknown scene type: expected a .ron, .aff, .gltf or .glb file".into(),
             }),
         }
     }
@@ -57,6 +62,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(_) => &[],
             Self::Aff(a) => &a.scene().warnings,
+            Self::Gltf(g) => g.warnings(),
         }
     }
 
@@ -66,6 +72,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => s.animation.map_or(1, |a| a.frames),
             Self::Aff(a) => a.frames(),
+            Self::Gltf(g) => g.frames(),
         }
     }
 
@@ -75,6 +82,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => s.animation.map_or(0.0, |a| a.time(frame)),
             Self::Aff(a) => a.time_of(frame),
+            Self::Gltf(g) => g.time_of(frame),
         }
     }
 
@@ -89,6 +97,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => s.set_time(time),
             Self::Aff(a) => a.set_time(time),
+            Self::Gltf(g) => g.set_time(time),
         }
     }
 
@@ -98,6 +107,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => s.camera_at(time),
             Self::Aff(a) => a.camera(time),
+            Self::Gltf(g) => g.camera(time),
         }
     }
 
@@ -107,6 +117,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => Arc::clone(&s.env),
             Self::Aff(a) => Arc::clone(&a.env),
+            Self::Gltf(g) => Arc::clone(&g.env),
         }
     }
 
@@ -116,6 +127,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => &s.ctx,
             Self::Aff(a) => &a.ctx,
+            Self::Gltf(g) => &g.ctx,
         }
     }
 
@@ -124,6 +136,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => &mut s.ctx,
             Self::Aff(a) => &mut a.ctx,
+            Self::Gltf(g) => &mut g.ctx,
         }
     }
 
@@ -133,6 +146,7 @@ impl ScenePlayer {
         match self {
             Self::Ron(s) => s.settings,
             Self::Aff(a) => a.settings(),
+            Self::Gltf(g) => g.settings(),
         }
     }
 }

@@ -1,0 +1,380 @@
+//! glTF 2.0 scenes made by the tests themselves (JSON with an external
+//! buffer, and the same as a binary .glb): meshes instanced by nodes, node
+//! animation with each interpolation, cameras, lights, strips and fans,
+//! sparse accessors, and every refusal as a typed error naming the file and
+//! the JSON path.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Quat, Vec3};
+use openrt_accel::Ray;
+use openrt_scene::{GltfPlayer, SceneError, ScenePlayer};
+use serde_json::{Value, json};
+
+#[path = "common/gltf_builder.rs"]
+mod gltf_builder;
+use gltf_builder::Builder;
+
+/// A unit quad in the xy plane (two indexed triangles) as mesh 0.
+fn quad(b: &mut Builder) -> Value {
+    let pos = b.floats(
+        &[-0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0],
+        "VEC3",
+        3,
+    );
+    let idx = b.indices(&[0, 1, 2, 0, 2, 3]);
+    json!([{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx, "material": 0}]}])
+}
+
+fn materials() -> Value {
+    json!([{"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.2, 0.1, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5}}])
+}
+
+fn player(path: &Path) -> GltfPlayer {
+    match ScenePlayer::open(Some(path)).unwrap_or_else(|e| panic!("{}: {e}", path.display())) {
+        ScenePlayer::Gltf(g) => *g,
+        _ => panic!("a .gltf opens as a glTF player"),
+    }
+}
+
+/// The world box centre of each instance.
+fn centres(p: &GltfPlayer) -> Vec<Vec3> {
+    p.ctx
+        .scene()
+        .instances()
+        .iter()
+        .map(|r| (r.world_bounds.min + r.world_bounds.max) * 0.5)
+        .collect()
+}
+
+#[test]
+fn one_mesh_under_two_nodes_is_one_object_with_two_static_instances() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Builder::default();
+    let meshes = quad(&mut b);
+    let doc = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"mesh": 0, "translation": [3.0, 0.0, 0.0]}],
+        "meshes": meshes,
+        "materials": materials(),
+    });
+    let path = b.write_gltf(dir.path(), "two", doc);
+    let mut p = player(&path);
+    assert_eq!(p.motion_classes(), (2, 0));
+    assert_eq!(p.frames(), 1);
+    p.set_time(0.0).unwrap();
+    let scene = p.ctx.scene();
+    assert_eq!(scene.instances().len(), 2);
+    assert!(
+        std::sync::Arc::ptr_eq(&scene.instances()[0].geometry, &scene.instances()[1].geometry),
+        "real instancing: one object"
+    );
+    for x in [0.0, 3.0] {
+        let hit = scene.intersect(&Ray::infinite(Vec3::new(x, 0.1, 5.0), -Vec3::Z));
+        assert!(hit.is_some_and(|h| (h.t - 5.0).abs() < 1e-5), "x = {x}: {hit:?}");
+    }
+    assert!(
+        scene
+            .intersect(&Ray::infinite(Vec3::new(1.5, 0.0, 5.0), -Vec3::Z))
+            .is_none()
+    );
+    // Without a camera the scene is framed; without lights one sits at the eye.
+    let cam = p.camera(0.0);
+    assert!((cam.at - Vec3::new(1.5, 0.0, 0.0)).length() < 1e-4, "{cam:?}");
+    assert_eq!(p.env.lights.len(), 1);
+    assert_eq!(p.env.lights[0].position, cam.from);
+}
+
+/// A node animated by `interpolation` on `property` with these keys, and a
+/// child node under it; returns (path, the animated node's instance index).
+#[allow(clippy::too_many_arguments)] // NOTE: the test matrix's axes, named at each call.
+fn animated(
+    dir: &Path,
+    name: &str,
+    path_kind: &str,
+    interpolation: &str,
+    times: &[f32],
+    values: &[f32],
+    comps: usize,
+    glb: bool,
+) -> PathBuf {
+    let mut b = Builder::default();
+    let meshes = quad(&mut b);
+    let input = b.floats(times, "SCALAR", 1);
+    let output = b.floats(values, if comps == 4 { "VEC4" } else { "VEC3" }, comps);
+    // The output accessor of a VEC3 needs no bounds; drop them (they would
+    // be the values' own, which is allowed anyway).
+    let doc = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0, 2]}],
+        "nodes": [
+            {"mesh": 0, "children": [1]},
+            {"mesh": 0, "translation": [0.0, 2.0, 0.0]},
+            {"mesh": 0, "translation": [-5.0, 0.0, 0.0]}
+        ],
+        "meshes": meshes,
+        "materials": materials(),
+        "animations": [{
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": path_kind}}],
+            "samplers": [{"input": input, "output": output, "interpolation": interpolation}]
+        }],
+    });
+    if glb {
+        b.write_glb(dir, name, doc)
+    } else {
+        b.write_gltf(dir, name, doc)
+    }
+}
+
+#[test]
+fn node_animation_moves_the_node_and_its_children_with_each_interpolation() {
+    let dir = tempfile::tempdir().unwrap();
+    let keys = [0.0, 0.0, 0.0, 2.0, 0.0, 0.0];
+    for (interp, want_half) in [("LINEAR", 1.0), ("STEP", 0.0)] {
+        for glb in [false, true] {
+            let path = animated(
+                dir.path(),
+                &format!("t{interp}{glb}"),
+                "translation",
+                interp,
+                &[0.0, 1.0],
+                &keys,
+                3,
+                glb,
+            );
+            let mut p = player(&path);
+            assert_eq!(
+                p.motion_classes(),
+                (1, 2),
+                "the node and its child move, the other stays"
+            );
+            assert_eq!(p.frames(), 31, "one second at 30 frames per second");
+            p.set_time(0.5).unwrap();
+            let c = centres(&p);
+            // Instances in scene order: node 0, its child 1, node 2.
+            assert!((c[0].x - want_half).abs() < 1e-5, "{interp} glb {glb}: {c:?}");
+            assert!(
+                (c[1] - Vec3::new(want_half, 2.0, 0.0)).length() < 1e-5,
+                "the child follows: {c:?}"
+            );
+            assert!((c[2].x + 5.0).abs() < 1e-5, "{c:?}");
+            p.set_time(1.0).unwrap();
+            assert!((centres(&p)[0].x - 2.0).abs() < 1e-5);
+            // The animation loops over its length.
+            p.set_time(1.5).unwrap();
+            assert!((centres(&p)[0].x - want_half).abs() < 1e-5);
+        }
+    }
+    // A cubic spline: (in-tangent, value, out-tangent) per key.
+    let spline = [
+        0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    ];
+    let path = animated(
+        dir.path(),
+        "spline",
+        "translation",
+        "CUBICSPLINE",
+        &[0.0, 1.0],
+        &spline,
+        3,
+        false,
+    );
+    let mut p = player(&path);
+    p.set_time(0.5).unwrap();
+    // Hermite at s = 1/2: p1 / 2 + m0 * dt / 8 = 1 + 0.5.
+    assert!((centres(&p)[0].x - 1.5).abs() < 1e-4, "{:?}", centres(&p));
+    // Rotation by slerp: a quarter turn about z over one second.
+    let q = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+    let rot = [0.0, 0.0, 0.0, 1.0, q.x, q.y, q.z, q.w];
+    let path = animated(dir.path(), "rot", "rotation", "LINEAR", &[0.0, 1.0], &rot, 4, false);
+    let mut p = player(&path);
+    p.set_time(0.5).unwrap();
+    // The child at (0, 2, 0) turned by an eighth of a turn about z.
+    let want = Quat::from_rotation_z(std::f32::consts::FRAC_PI_4) * Vec3::new(0.0, 2.0, 0.0);
+    assert!(
+        (centres(&p)[1] - want).length() < 1e-4,
+        "{:?} against {want}",
+        centres(&p)
+    );
+}
+
+#[test]
+fn cameras_and_punctual_lights_come_from_their_nodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Builder::default();
+    let meshes = quad(&mut b);
+    let doc = json!({
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "point", "color": [1.0, 0.9, 0.8], "intensity": 10.0},
+            {"type": "spot", "color": [0.5, 0.5, 0.5], "intensity": 5.0, "spot": {"outerConeAngle": 0.5}}
+        ]}},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2, 3]}],
+        "nodes": [
+            {"mesh": 0},
+            {"camera": 0, "translation": [0.0, 0.0, 5.0]},
+            {"translation": [0.0, 3.0, 1.0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"translation": [1.0, 3.0, 1.0], "extensions": {"KHR_lights_punctual": {"light": 1}}}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.05}}],
+        "meshes": meshes,
+        "materials": materials(),
+    });
+    let path = b.write_gltf(dir.path(), "lit", doc);
+    let p = player(&path);
+    let cam = p.camera(0.0);
+    assert_eq!(cam.from, Vec3::new(0.0, 0.0, 5.0));
+    assert!(
+        (cam.at - Vec3::new(0.0, 0.0, 4.0)).length() < 1e-6,
+        "looks down -z: {cam:?}"
+    );
+    assert!((cam.fov_y_deg - 0.8f32.to_degrees()).abs() < 1e-4);
+    assert_eq!(cam.near, 0.05);
+    let lights: Vec<Vec3> = p.env.lights.iter().map(|l| l.position).collect();
+    assert_eq!(lights, vec![Vec3::new(0.0, 3.0, 1.0), Vec3::new(1.0, 3.0, 1.0)]);
+    assert_eq!(p.env.lights[0].color, Vec3::new(1.0, 0.9, 0.8));
+    assert!(
+        p.warnings().iter().any(|w| w.to_string().contains("spot light")),
+        "the spot light is mapped with a warning: {:?}",
+        p.warnings()
+    );
+}
+
+#[test]
+fn strips_fans_unindexed_and_sparse_primitives_are_drawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Builder::default();
+    // Four vertices of a unit square: as a strip (0 1 3 2 order) and a fan.
+    let strip = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0], "VEC3", 3);
+    let fan = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0], "VEC3", 3);
+    // A sparse POSITION: a zero triangle whose vertex 2 is substituted.
+    let base = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0], "VEC3", 3);
+    let idx = b.indices(&[2, 0]);
+    let vals = b.floats(&[0.0, 1.0, 0.0], "SCALAR", 1);
+    let _ = vals;
+    let sparse_view_idx = b.views.len() - 2;
+    let sparse_view_val = b.views.len() - 1;
+    let sparse = {
+        let mut a = b.accessors[base].clone();
+        a["max"] = json!([1.0, 1.0, 0.0]);
+        a["sparse"] = json!({"count": 1, "indices": {"bufferView": sparse_view_idx, "componentType": 5123}, "values": {"bufferView": sparse_view_val}});
+        b.accessors.push(a);
+        b.accessors.len() - 1
+    };
+    let _ = idx;
+    let doc = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "nodes": [{"mesh": 0}, {"mesh": 1, "translation": [3.0, 0.0, 0.0]}, {"mesh": 2, "translation": [6.0, 0.0, 0.0]}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": strip}, "mode": 5}]},
+            {"primitives": [{"attributes": {"POSITION": fan}, "mode": 6}]},
+            {"primitives": [{"attributes": {"POSITION": sparse}}]}
+        ],
+    });
+    let path = b.write_gltf(dir.path(), "modes", doc);
+    let mut p = player(&path);
+    p.set_time(0.0).unwrap();
+    let scene = p.ctx.scene();
+    for (x0, what) in [(0.0, "strip"), (3.0, "fan")] {
+        for (u, v) in [(0.25, 0.75), (0.75, 0.25), (0.5, 0.5)] {
+            let hit = scene.intersect(&Ray::infinite(Vec3::new(x0 + u, v, 5.0), -Vec3::Z));
+            assert!(hit.is_some(), "{what}: both triangles drawn ({u}, {v})");
+        }
+    }
+    // The sparse substitution made the triangle (0,0) (1,0) (0,1).
+    assert!(
+        scene
+            .intersect(&Ray::infinite(Vec3::new(6.25, 0.25, 5.0), -Vec3::Z))
+            .is_some()
+    );
+    assert!(
+        scene
+            .intersect(&Ray::infinite(Vec3::new(6.75, 0.75, 5.0), -Vec3::Z))
+            .is_none()
+    );
+}
+
+/// Loads `doc` and expects an error whose text holds every one of `want`.
+fn refused(dir: &Path, name: &str, b: &mut Builder, doc: Value, want: &[&str]) {
+    let path = b.write_gltf(dir, name, doc);
+    let Err(e) = ScenePlayer::open(Some(&path)) else {
+        panic!("{name}: loaded");
+    };
+    let text = e.to_string();
+    assert!(text.contains(&format!("{name}.gltf")), "names the file: {text}");
+    for w in want {
+        assert!(text.contains(w), "{name}: '{w}' not in: {text}");
+    }
+}
+
+#[test]
+fn broken_and_unsupported_files_are_typed_errors_naming_the_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = |b: &mut Builder| {
+        let meshes = quad(b);
+        json!({"scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}], "meshes": meshes, "materials": materials()})
+    };
+    let mut b = Builder::default();
+    let mut doc = base(&mut b);
+    doc["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    doc["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    refused(dir.path(), "draco", &mut b, doc, &["KHR_draco_mesh_compression"]);
+
+    let mut b = Builder::default();
+    let pos = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3", 3);
+    let idx = b.indices(&[0, 1, 7]);
+    let doc = json!({"scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "indices": idx}]}]});
+    refused(
+        dir.path(),
+        "index",
+        &mut b,
+        doc,
+        &["meshes[0].primitives[0]", "index 7", "3 vertices"],
+    );
+
+    for (name, times, rule) in [
+        ("back", [1.0, 0.5], "must increase"),
+        ("nan", [0.0, f32::NAN], "not finite"),
+    ] {
+        let mut b = Builder::default();
+        let mut doc = base(&mut b);
+        let input = b.floats(&times, "SCALAR", 1);
+        let output = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0], "VEC3", 3);
+        doc["animations"] = json!([{"channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+            "samplers": [{"input": input, "output": output}]}]);
+        refused(dir.path(), name, &mut b, doc, &["animations[0].samplers[0]", rule]);
+    }
+
+    let mut b = Builder::default();
+    let mut doc = base(&mut b);
+    doc["nodes"] = json!([{"mesh": 0, "children": [1]}, {"children": [0]}]);
+    doc["scenes"] = json!([{"nodes": [0]}]);
+    refused(dir.path(), "cycle", &mut b, doc, &["nodes["]);
+
+    // A missing file, a missing buffer and a truncated binary file.
+    let missing = dir.path().join("nowhere.gltf");
+    assert!(matches!(ScenePlayer::open(Some(&missing)), Err(SceneError::Io { .. })));
+    let mut b = Builder::default();
+    let doc = base(&mut b);
+    let path = b.write_gltf(dir.path(), "nobin", doc);
+    std::fs::remove_file(dir.path().join("nobin.bin")).unwrap();
+    let e = ScenePlayer::open(Some(&path))
+        .err()
+        .expect("a missing buffer is an error");
+    assert!(e.to_string().contains("nobin.gltf"), "{e}");
+    let mut b = Builder::default();
+    let doc = base(&mut b);
+    let glb = b.write_glb(dir.path(), "cut", doc);
+    let bytes = std::fs::read(&glb).unwrap();
+    for keep in [0, 11, 20, bytes.len() / 2, bytes.len() - 1] {
+        std::fs::write(&glb, &bytes[..keep]).unwrap();
+        let e = ScenePlayer::open(Some(&glb))
+            .err()
+            .unwrap_or_else(|| panic!("{keep} bytes loaded"));
+        assert!(e.to_string().contains("cut.glb"), "{keep} bytes: {e}");
+    }
+}
