@@ -465,18 +465,12 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             let (stats, net) = render_frame(&mut player, t, &s, &renderer, cluster, &mut img)?;
             save_png(&output, &img)?;
             if let Some(p) = stats.phases {
-                let ms = |ns: u64| ns as f64 / 1e6;
-                println!(
-                    "phases (ms, summed over threads): camera {:.2}, primary {:.2}, shadow {:.2}, bounce {:.2}, surface {:.2}, textures {:.2}, light loop {:.2}, image {:.2}",
-                    ms(p.camera_ns),
-                    ms(p.primary_ns),
-                    ms(p.shadow_ns),
-                    ms(p.bounce_ns),
-                    ms(p.surface_ns),
-                    ms(p.textures_ns),
-                    ms(p.lights_ns),
-                    ms(p.image_ns)
-                );
+                let spans: Vec<String> = p
+                    .named()
+                    .iter()
+                    .map(|&(name, ns)| format!("{name} {:.2}", ns as f64 / 1e6))
+                    .collect();
+                println!("phases (ms, summed over threads): {}", spans.join(", "));
             } else if phases {
                 println!("phases: not timed (a distributed frame is timed by its ranks)");
             }

@@ -69,6 +69,22 @@ impl PhaseTimes {
         self.image_ns += other.image_ns;
     }
 
+    /// Every phase with its name, in frame order: camera, primary, shadow,
+    /// bounce, surface, textures, light loop, image.
+    #[must_use]
+    pub fn named(&self) -> [(&'static str, u64); 8] {
+        [
+            ("camera", self.camera_ns),
+            ("primary", self.primary_ns),
+            ("shadow", self.shadow_ns),
+            ("bounce", self.bounce_ns),
+            ("surface", self.surface_ns),
+            ("textures", self.textures_ns),
+            ("light loop", self.lights_ns),
+            ("image", self.image_ns),
+        ]
+    }
+
     /// The ray queries: primary, shadow and bounce.
     #[must_use]
     pub fn queries_ns(&self) -> u64 {
@@ -160,6 +176,7 @@ mod tests {
             assert!(ns >= 50_000, "{name}: {ns} ns");
         }
         assert_eq!(p.total_ns(), p.camera_ns + p.queries_ns() + p.shading_ns());
+        assert_eq!(p.named().iter().map(|(_, ns)| ns).sum::<u64>(), p.total_ns());
         let mut sum = PhaseTimes::default();
         sum.merge(&p);
         sum.merge(&p);

@@ -186,22 +186,16 @@ fn phase_table(md: &mut String, res: &Results) {
         let p = &r.phases;
         let ms = |ns: u64| ns as f64 / 1e6;
         let other = r.timed_ms - ms(p.total_ns());
+        let spans: Vec<String> = p.named().iter().map(|&(_, ns)| format!("{:.1}", ms(ns))).collect();
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.1} / {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0}% |",
+            "| {} | {} | {} | {:.1} / {:.1} | {} | {:.1} | {:.0} | {:.0}% |",
             r.scene,
             r.mode,
             r.backend,
             r.timed_ms,
             r.untimed_ms,
-            ms(p.camera_ns),
-            ms(p.primary_ns),
-            ms(p.shadow_ns),
-            ms(p.bounce_ns),
-            ms(p.surface_ns),
-            ms(p.textures_ns),
-            ms(p.lights_ns),
-            ms(p.image_ns),
+            spans.join(" | "),
             other,
             r.outside_queries_ns_per_pixel(),
             100.0 * r.shading_share()

@@ -17,11 +17,16 @@ pub struct Builder {
 }
 
 impl Builder {
-    /// An accessor of `f32` values (`kind` VEC3, VEC4, SCALAR...).
-    pub fn floats(&mut self, data: &[f32], kind: &str, comps: usize) -> usize {
+    /// Pads the binary data to a multiple of four bytes.
+    fn pad(&mut self) {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
+    }
+
+    /// An accessor of `f32` values (`kind` VEC3, VEC4, SCALAR...).
+    pub fn floats(&mut self, data: &[f32], kind: &str, comps: usize) -> usize {
+        self.pad();
         let offset = self.bin.len();
         for v in data {
             self.bin.extend_from_slice(&v.to_le_bytes());
@@ -48,9 +53,7 @@ impl Builder {
 
     /// An accessor of `u16` indices.
     pub fn indices(&mut self, data: &[u16]) -> usize {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
+        self.pad();
         let offset = self.bin.len();
         for v in data {
             self.bin.extend_from_slice(&v.to_le_bytes());
@@ -65,9 +68,7 @@ impl Builder {
 
     /// The document: `doc` gets the buffers, views and accessors.
     pub fn finish(&mut self, mut doc: Value, uri: Option<&str>) -> Value {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
+        self.pad();
         doc["asset"] = json!({"version": "2.0"});
         let mut buffer = json!({"byteLength": self.bin.len()});
         if let Some(u) = uri {
