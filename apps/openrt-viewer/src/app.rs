@@ -8,6 +8,7 @@ use eframe::egui;
 use egui_file_dialog::FileDialog;
 use openrt_accel::BuilderKind;
 use openrt_core::{Accel, Backend, Camera, RenderMode, RenderSettings};
+use openrt_scene::GltfAnimation;
 
 use crate::orbit;
 use crate::worker::{FrameResult, Reply, Request, SceneInfo, Worker};
@@ -80,12 +81,12 @@ impl ViewerApp {
         let ctx = cc.egui_ctx.clone();
         let worker = Worker::start(move || ctx.request_repaint());
         // A send fails only if the render thread is gone: `receive` reports it.
-        let _ = worker.tx.send(Request::Open(opts.scene));
+        let _ = worker.tx.send(Request::Open(opts.scene, GltfAnimation::First));
         Self {
             worker,
             dialog: FileDialog::new()
-                .add_file_filter_extensions("Scenes (.ron, .aff)", vec!["ron", "aff"])
-                .default_file_filter("Scenes (.ron, .aff)"),
+                .add_file_filter_extensions("Scenes (.ron, .aff, .gltf, .glb)", vec!["ron", "aff", "gltf", "glb"])
+                .default_file_filter("Scenes (.ron, .aff, .gltf, .glb)"),
             info: None,
             error: None,
             texture: None,
@@ -309,7 +310,7 @@ impl ViewerApp {
         };
         let r = f.stats.rays;
         format!(
-            "{fps:.1} fps | {:.2} Mrays/s | {} frames rendered | {} of {PROGRESSIVE_SAMPLES} samples\nrays: primary {} shadow {} reflection {} refraction {}\ncommit {:.2} ms: top-level {:.3} ms{}, fast {} ({:.2} ms), SAH {} ({:.2} ms), promoted {}\n{} instances, {} objects, {} triangles | {}x{} | t = {:.3}",
+            "{fps:.1} fps | {:.2} Mrays/s | {} frames rendered | {} of {PROGRESSIVE_SAMPLES} samples\nrays: primary {} shadow {} reflection {} refraction {}\ncommit {:.2} ms: top-level {:.3} ms{}, fast {} ({:.2} ms), SAH {} ({:.2} ms), promoted {}\n{} instances, {} objects, {} triangles | {}x{} | t = {:.3}\nmotion: {}",
             f.stats.mrays_per_s,
             self.frames_rendered,
             self.accum_samples,
@@ -330,7 +331,8 @@ impl ViewerApp {
             f.triangles,
             f.image.width,
             f.image.height,
-            f.time
+            f.time,
+            self.info.as_ref().map_or_else(String::new, |i| i.motion.to_string())
         )
     }
 
@@ -354,6 +356,35 @@ impl ViewerApp {
         };
     }
 
+    /// A glTF file's animations: the one played, or all, or none (the
+    /// file is opened again with the choice).
+    fn animation_chooser(&mut self, ui: &mut egui::Ui) {
+        let Some(info) = self.info.as_ref().filter(|i| !i.animations.is_empty()) else {
+            return;
+        };
+        let name = |a: &GltfAnimation| match a {
+            GltfAnimation::First => format!("first ({})", info.animations[0]),
+            GltfAnimation::Index(k) => format!("{k}: {}", info.animations.get(*k).map_or("", String::as_str)),
+            GltfAnimation::Name(n) => n.clone(),
+            GltfAnimation::All => "all together".into(),
+            GltfAnimation::None => "none (at rest)".into(),
+        };
+        let mut chosen = info.animation.clone();
+        let mut choices: Vec<GltfAnimation> = (0..info.animations.len()).map(GltfAnimation::Index).collect();
+        choices.extend([GltfAnimation::All, GltfAnimation::None]);
+        egui::ComboBox::from_label("glTF animation")
+            .selected_text(name(&chosen))
+            .show_ui(ui, |ui| {
+                for c in choices {
+                    let label = name(&c);
+                    ui.selectable_value(&mut chosen, c, label);
+                }
+            });
+        if chosen != info.animation {
+            let _ = self.worker.tx.send(Request::Open(info.path.clone(), chosen));
+        }
+    }
+
     fn controls(&mut self, ui: &mut egui::Ui) {
         ui.heading("OpenRT-rs");
         if let Some(i) = &self.info {
@@ -364,11 +395,12 @@ impl ViewerApp {
                 self.dialog.pick_file();
             }
             if ui.button("Default scene").clicked() {
-                let _ = self.worker.tx.send(Request::Open(None));
+                let _ = self.worker.tx.send(Request::Open(None, GltfAnimation::First));
             }
         });
         ui.separator();
         ui.label("Animation");
+        self.animation_chooser(ui);
         let (a, b, frames) = self
             .info
             .as_ref()
@@ -524,7 +556,7 @@ impl eframe::App for ViewerApp {
         self.receive(&ctx);
         self.dialog.update(&ctx);
         if let Some(path) = self.dialog.take_picked() {
-            let _ = self.worker.tx.send(Request::Open(Some(path)));
+            let _ = self.worker.tx.send(Request::Open(Some(path), GltfAnimation::First));
         }
         // Screenshot of the real window after enough frames.
         if let Some(path) = self.screenshot.clone() {

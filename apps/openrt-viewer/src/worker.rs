@@ -7,12 +7,13 @@ use std::thread::JoinHandle;
 
 use crossbeam::channel::{Receiver, Sender, unbounded};
 use openrt_core::{Accel, Backend, Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer};
-use openrt_scene::ScenePlayer;
+use openrt_scene::{GltfAnimation, GltfOptions, MotionClasses, ScenePlayer};
 
 /// What the UI asks for.
 pub enum Request {
-    /// Open a scene (`None`: the built-in default scene).
-    Open(Option<PathBuf>),
+    /// Open a scene (`None`: the built-in default scene), for a glTF file
+    /// with the chosen animation.
+    Open(Option<PathBuf>, GltfAnimation),
     /// Render the scene at `time` with `camera` (`None`: the scene's own camera).
     Render {
         time: f32,
@@ -36,6 +37,13 @@ pub struct SceneInfo {
     pub settings: RenderSettings,
     /// The structure the scene file asks for.
     pub accel: Accel,
+    /// The file it came from (`None`: the built-in scene).
+    pub path: Option<PathBuf>,
+    /// Instances and objects by motion class.
+    pub motion: MotionClasses,
+    /// A glTF file's animations by index (their names), and the one played.
+    pub animations: Vec<String>,
+    pub animation: GltfAnimation,
 }
 
 /// What the render thread sends back.
@@ -144,7 +152,7 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
         let last_render = pending.iter().rposition(|r| matches!(r, Request::Render { .. }));
         for (i, req) in pending.into_iter().enumerate() {
             let reply = match req {
-                Request::Open(path) => match ScenePlayer::open(path.as_deref()) {
+                Request::Open(path, animation) => match open(path.as_deref(), &animation) {
                     Ok(p) => {
                         let info = SceneInfo {
                             name: path
@@ -155,6 +163,10 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                             time_range: p.time_range(),
                             settings: p.settings(),
                             accel: p.ctx().accel(),
+                            path: path.clone(),
+                            motion: p.motion_classes(),
+                            animations: p.animation_names(),
+                            animation,
                         };
                         player = Some(p);
                         Reply::Opened(info)
@@ -220,4 +232,21 @@ fn render(
         instances: scene.instances().len(),
         triangles: scene.instanced_triangles(),
     })
+}
+
+/// Opens a scene; a glTF file plays `animation`.
+fn open(path: Option<&std::path::Path>, animation: &GltfAnimation) -> Result<ScenePlayer, openrt_scene::SceneError> {
+    let is_gltf = path
+        .and_then(|p| p.extension())
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
+    let options = GltfOptions {
+        animation: if is_gltf {
+            animation.clone()
+        } else {
+            GltfAnimation::First
+        },
+        ..GltfOptions::default()
+    };
+    ScenePlayer::open_with(path, &options)
 }

@@ -168,3 +168,33 @@ fn a_still_view_accumulates_one_sample_per_frame() {
     let frames = report["frames_rendered"].as_u64().unwrap();
     assert!(overlay.contains(&format!("{frames} of 64 samples")), "{overlay}");
 }
+
+/// The shipped glTF example plays in the window, and the overlay reports
+/// its motion classes.
+#[test]
+fn the_viewer_plays_a_gltf_scene_and_shows_its_motion_classes() {
+    if !have_xvfb() {
+        return;
+    }
+    let _turn = XVFB.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = tempfile::tempdir().unwrap();
+    let shot = dir.path().join("walker.png");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/walker.glb");
+    let status = Command::new("timeout")
+        .args(["120", "xvfb-run", "-a", "-s", "-screen 0 1100x700x24"])
+        .arg(env!("CARGO_BIN_EXE_openrt-viewer"))
+        .arg(&scene)
+        .args(["--threads", "1", "--frames", "3", "--screenshot"])
+        .arg(&shot)
+        .env("LIBGL_ALWAYS_SOFTWARE", "1")
+        .status()
+        .expect("running the viewer");
+    assert!(status.success(), "{status}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(shot.with_extension("json")).unwrap()).unwrap();
+    let overlay = report["overlay"].as_str().unwrap();
+    assert!(
+        overlay.contains("motion: 1 static instances, 1 affine instances, 1 deforming objects"),
+        "{overlay}"
+    );
+}

@@ -82,7 +82,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use openrt_accel::BuilderKind;
 use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter};
-use openrt_scene::ScenePlayer;
+use openrt_scene::{GltfAnimation, GltfOptions, ScenePlayer};
 
 #[derive(Parser)]
 #[command(
@@ -103,6 +103,16 @@ struct Cli {
     /// the next few) or `static` (interleaved shares, with stealing at the end).
     #[arg(long, global = true, default_value = "dynamic", value_parser = ["dynamic", "static"])]
     mpi_tiles: String,
+    /// glTF files: the scene played, `scenes[N]` (default: the file's default scene).
+    #[arg(long = "scene", global = true, value_name = "N")]
+    gltf_scene: Option<usize>,
+    /// glTF files: the animation played, by name or index, `all` (together,
+    /// looping over the longest) or `none` (default: the first).
+    #[arg(long, global = true, value_name = "NAME|INDEX|all|none")]
+    animation: Option<GltfAnimation>,
+    /// glTF files: the camera, `cameras[N]` (default: the first perspective camera met).
+    #[arg(long, global = true, value_name = "N")]
+    camera: Option<usize>,
     #[command(subcommand)]
     command: Command,
 }
@@ -192,6 +202,10 @@ enum Command {
         /// Thread counts, comma-separated (default: 1 and all cores).
         #[arg(long, value_delimiter = ',')]
         threads: Option<Vec<usize>>,
+        /// Triangles of the skinned glTF figures whose per-frame cost is
+        /// measured, comma-separated (an empty list measures none).
+        #[arg(long, default_value = "10000,100000,1000000", value_delimiter = ',')]
+        deform_sizes: Vec<usize>,
         /// Report file (default: docs/BENCHMARKS.md; with `--device`, docs/BENCHMARKS-DEVICE.md).
         #[arg(short, long)]
         output: Option<PathBuf>,
@@ -288,13 +302,20 @@ fn run_mpi(cli: Cli, cluster: &Cluster) -> ExitCode {
     }
 }
 
-/// Opens a scene; its load warnings are printed once (or, with `--strict`,
-/// the first one is the error).
-pub fn open_scene(path: Option<&Path>, strict: bool) -> Result<ScenePlayer, String> {
-    if strict {
-        return ScenePlayer::open_strict(path).map_err(|e| e.to_string());
-    }
-    let player = ScenePlayer::open(path).map_err(|e| e.to_string())?;
+/// Opens a scene (with the glTF choices of `gltf`); its load warnings are
+/// printed once (or, with `--strict`, the first one is the error).
+pub fn open_scene(path: Option<&Path>, strict: bool, gltf: &GltfOptions) -> Result<ScenePlayer, String> {
+    let player = if strict {
+        ScenePlayer::open_strict_with(path, gltf).map_err(|e| e.to_string())?
+    } else {
+        ScenePlayer::open_with(path, gltf).map_err(|e| e.to_string())?
+    };
+    print_warnings(&player);
+    Ok(player)
+}
+
+/// Prints a scene's load warnings, the first [`MAX_PRINTED_WARNINGS`] of them.
+fn print_warnings(player: &ScenePlayer) {
     let w = player.warnings();
     for warning in w.iter().take(MAX_PRINTED_WARNINGS) {
         eprintln!("warning: {warning}");
@@ -305,7 +326,6 @@ pub fn open_scene(path: Option<&Path>, strict: bool) -> Result<ScenePlayer, Stri
             w.len() - MAX_PRINTED_WARNINGS
         );
     }
-    Ok(player)
 }
 
 /// `--backend`: a traversal backend, and for `bvh` / `bvh-single` the
@@ -349,7 +369,7 @@ fn settings(player: &ScenePlayer, q: &Quality) -> RenderSettings {
 fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
     // The scene's objects are rebuilt with this structure at the next commit.
     if let Some(a) = q.accel.or(q.backend.accel) {
-        player.ctx_mut().set_accel(a);
+        player.set_accel(a).map_err(|e| e.to_string())?;
     }
     player
         .ctx_mut()
@@ -434,6 +454,11 @@ fn frame_range(spec: Option<&str>, n: u32) -> Result<std::ops::Range<u32>, Strin
 
 fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
     let strict = cli.strict;
+    let gltf = GltfOptions {
+        scene: cli.gltf_scene,
+        animation: cli.animation.clone().unwrap_or_default(),
+        camera: cli.camera,
+    };
     match cli.command {
         Command::Render {
             scene,
@@ -443,7 +468,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             time,
             phases,
         } => {
-            let mut player = open_scene(scene.as_deref(), strict)?;
+            let mut player = open_scene(scene.as_deref(), strict, &gltf)?;
             commit_threads(&mut player, &quality)?;
             if cluster.is_some() {
                 player.ctx_mut().record_changes();
@@ -480,7 +505,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             let scene = player.ctx().scene();
             let r = stats.rays;
             println!(
-                "{}: t={t} {}x{} {:?} depth {} on {} threads, backend {} over {} objects: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles",
+                "{}: t={t} {}x{} {:?} depth {} on {} threads, backend {} over {} objects: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles; {}",
                 output.display(),
                 s.width,
                 s.height,
@@ -497,7 +522,8 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 r.refraction,
                 commit.total_ms,
                 scene.instances().len(),
-                scene.instanced_triangles()
+                scene.instanced_triangles(),
+                player.motion_classes()
             );
             Ok(())
         }
@@ -507,6 +533,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             width,
             height,
             threads,
+            deform_sizes,
             output,
             device,
         } => {
@@ -530,6 +557,12 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             if threads.contains(&0) || frames == 0 || width < 4 || height < 4 {
                 return Err("bench: threads and frames must be at least 1, the image at least 4x4".into());
             }
+            if let Some(&n) = deform_sizes.iter().find(|&&n| n > openrt_scene::MAX_FIGURE_TRIANGLES) {
+                return Err(format!(
+                    "bench --deform-sizes {n}: at most {} triangles (MAX_FIGURE_TRIANGLES)",
+                    openrt_scene::MAX_FIGURE_TRIANGLES
+                ));
+            }
             if frames > MAX_BENCH_FRAMES {
                 return Err(format!(
                     "bench --frames {frames}: at most {MAX_BENCH_FRAMES} frames are sampled (MAX_BENCH_FRAMES)"
@@ -545,6 +578,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 width,
                 height,
                 threads,
+                deform_sizes: deform_sizes.into_iter().filter(|&n| n > 0).collect(),
                 out: output,
                 command,
             })
@@ -557,12 +591,13 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             plot,
             quality,
         } => {
-            let player = open_scene(Some(&scene), strict)?;
+            let player = open_scene(Some(&scene), strict, &gltf)?;
             let s = settings(&player, &quality);
             drop(player);
             let summary = soak::run(
                 &soak::SoakOptions {
                     scene,
+                    gltf,
                     frames,
                     every,
                     output,
@@ -586,7 +621,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             output.as_deref(),
             stats,
             &quality,
-            strict,
+            (strict, &gltf),
             cluster,
         ),
     }
@@ -600,10 +635,10 @@ fn play(
     output: Option<&Path>,
     stats: Option<PathBuf>,
     quality: &Quality,
-    strict: bool,
+    (strict, gltf): (bool, &GltfOptions),
     cluster: Option<&Cluster>,
 ) -> Result<(), String> {
-    let mut player = open_scene(Some(scene), strict)?;
+    let mut player = open_scene(Some(scene), strict, gltf)?;
     commit_threads(&mut player, quality)?;
     if cluster.is_some() {
         player.ctx_mut().record_changes();

@@ -7,12 +7,14 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use openrt_core::{RenderSettings, Renderer};
-use openrt_scene::ScenePlayer;
+use openrt_scene::{GltfOptions, ScenePlayer};
 
 /// What to play and how often to sample.
 pub struct SoakOptions {
     /// The scene.
     pub scene: PathBuf,
+    /// For a glTF scene: the scene, animation and camera played.
+    pub gltf: GltfOptions,
     /// Frames in all (the animation loops).
     pub frames: u64,
     /// Frames per sample.
@@ -44,7 +46,7 @@ pub fn run(o: &SoakOptions, settings: &RenderSettings, renderer: &Renderer) -> R
     if o.every == 0 || o.frames < 10 * o.every {
         return Err("soak: --every must be at least 1 and --frames at least 10 samples".into());
     }
-    let mut player = ScenePlayer::open(Some(&o.scene)).map_err(|e| e.to_string())?;
+    let mut player = ScenePlayer::open_with(Some(&o.scene), &o.gltf).map_err(|e| e.to_string())?;
     // One pool commits and renders.
     player.ctx_mut().set_pool(renderer.pool());
     let mut sink: Option<Box<dyn std::io::Write>> = match &o.output {

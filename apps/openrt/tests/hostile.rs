@@ -89,7 +89,22 @@ fn crafted_inputs_give_errors_not_crashes() {
         (&["bench", "--frames", "100000000", "--scenes", "slab"], "--frames"),
         (&["render", "--spp", "0", "-o", "a.png"], "samples per pixel"),
         (&["render", "--spp", "100000", "-o", "a.png"], "samples per pixel"),
+        (
+            &["render", "anim.ron", "--animation", "1", "-o", "a.png"],
+            "glTF files only",
+        ),
+        (
+            &["render", "walker.glb", "--animation", "run", "-o", "a.png"],
+            "no animation has that name",
+        ),
+        (&["render", "walker.glb", "--scene", "3", "-o", "a.png"], "--scene 3"),
+        (&["render", "walker.glb", "--camera", "9", "-o", "a.png"], "--camera 9"),
     ];
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/walker.glb"),
+        d.join("walker.glb"),
+    )
+    .unwrap();
     for (args, expect) in cases {
         let (code, err) = openrt(args, d);
         assert_eq!(code, Some(1), "openrt {args:?}: exit {code:?}, stderr:\n{err}");

@@ -111,6 +111,51 @@ struct Vertex {
     uv: Option<Vec2>,
 }
 
+/// The arrays of [`Context::draw_elements`]: one position per vertex, and
+/// optionally one normal and one texture coordinate per vertex.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct VertexArrays<'a> {
+    /// Positions (object space of the current matrix).
+    pub positions: &'a [Vec3],
+    /// Normals, one per position.
+    pub normals: Option<&'a [Vec3]>,
+    /// Texture coordinates, one per position.
+    pub uvs: Option<&'a [Vec2]>,
+}
+
+/// Appends the valid triangles among `tris` (corners numbered for
+/// `vertex`) to `mesh` with `material`; zero-area ones are counted as dropped.
+fn emit_triangles<'v>(
+    mesh: &mut ObjectMesh,
+    material: MaterialId,
+    tris: &[[usize; 3]],
+    vertex: impl Fn(usize) -> &'v Vertex,
+) {
+    for &[a, b, c] in tris {
+        let (va, vb, vc) = (vertex(a), vertex(b), vertex(c));
+        let tri: Triangle = [va.p, vb.p, vc.p];
+        if !is_valid_triangle(&tri) {
+            mesh.dropped += 1;
+            continue;
+        }
+        let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        let normals = match (va.n, vb.n, vc.n) {
+            (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+            _ => None,
+        };
+        let sh = &mut mesh.shading;
+        sh.has_normals.push(normals.is_some());
+        sh.normals.push(normals.unwrap_or([ng; 3]));
+        sh.uvs.push([
+            va.uv.unwrap_or_default(),
+            vb.uv.unwrap_or_default(),
+            vc.uv.unwrap_or_default(),
+        ]);
+        sh.materials.push(material);
+        mesh.triangles.push(tri);
+    }
+}
+
 /// An open object definition and the state it saved.
 struct Definition {
     id: ObjectId,
@@ -487,30 +532,102 @@ impl Context {
         };
         let tris = kind.triangulate(d.vertices.len())?;
         d.primitive = None;
-        for [a, b, c] in tris {
-            let (va, vb, vc) = (&d.vertices[a], &d.vertices[b], &d.vertices[c]);
-            let tri: Triangle = [va.p, vb.p, vc.p];
-            if !is_valid_triangle(&tri) {
-                d.mesh.dropped += 1;
-                continue;
-            }
-            let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-            let normals = match (va.n, vb.n, vc.n) {
-                (Some(x), Some(y), Some(z)) => Some([x, y, z]),
-                _ => None,
-            };
-            let sh = &mut d.mesh.shading;
-            sh.has_normals.push(normals.is_some());
-            sh.normals.push(normals.unwrap_or([ng; 3]));
-            sh.uvs.push([
-                va.uv.unwrap_or_default(),
-                vb.uv.unwrap_or_default(),
-                vc.uv.unwrap_or_default(),
-            ]);
-            sh.materials.push(material);
-            d.mesh.triangles.push(tri);
-        }
+        let vertices = std::mem::take(&mut d.vertices);
+        emit_triangles(&mut d.mesh, material, &tris, |k| &vertices[k]);
+        d.vertices = vertices;
         d.vertices.clear();
+        Ok(())
+    }
+
+    /// A whole primitive from vertex arrays, like OpenGL's `glDrawElements`
+    /// over vertex, normal and texture coordinate arrays: the same triangles
+    /// as `begin(kind)`, then for each index its `normal`, `tex_coord` and
+    /// `vertex`, then `end()`, with positions under the current matrix and
+    /// normals under its inverse transpose (computed once, not per vertex).
+    /// A zero normal counts as none (its triangle is shaded with the
+    /// geometric normal); without `uvs` the coordinates are (0, 0).
+    ///
+    /// # Errors
+    /// As those calls (`NotInObject`, `PrimitiveOpen`, `NonFinite`,
+    /// `CoordinateLimit`, `IncompletePrimitive`), and
+    /// [`CoreError::VertexIndex`] / [`CoreError::ArrayLength`] for an
+    /// index beyond the arrays or arrays of different lengths; on an error
+    /// nothing of the primitive is added.
+    pub fn draw_elements(
+        &mut self,
+        kind: PrimitiveKind,
+        arrays: &VertexArrays<'_>,
+        indices: &[u32],
+    ) -> Result<(), CoreError> {
+        const CALL: &str = "draw_elements";
+        let material = self.current_material;
+        let m = self.matrices.top();
+        let d = self.def_mut(CALL)?;
+        if let Some(p) = d.primitive {
+            return Err(CoreError::PrimitiveOpen { call: CALL, current: p });
+        }
+        let n = arrays.positions.len();
+        for (what, len) in [
+            ("normal", arrays.normals.map(<[Vec3]>::len)),
+            ("texture coordinate", arrays.uvs.map(<[Vec2]>::len)),
+        ] {
+            if let Some(len) = len.filter(|&l| l != n) {
+                return Err(CoreError::ArrayLength {
+                    call: CALL,
+                    what,
+                    len,
+                    vertices: n,
+                });
+            }
+        }
+        if let Some((at, &index)) = indices.iter().enumerate().find(|(_, i)| **i as usize >= n) {
+            return Err(CoreError::VertexIndex {
+                call: CALL,
+                index,
+                at,
+                vertices: n,
+            });
+        }
+        let tris = kind.triangulate(indices.len())?;
+        let nm = Mat3::from_mat4(m).inverse().transpose();
+        let mut vertices = Vec::with_capacity(n);
+        for (i, &p) in arrays.positions.iter().enumerate() {
+            let wp = m.transform_point3(p);
+            if !p.is_finite() || !wp.is_finite() {
+                return Err(CoreError::NonFinite {
+                    call: CALL,
+                    what: format!("position {i} ({p}, transformed {wp})"),
+                });
+            }
+            if !within_coordinate_limit(wp) {
+                return Err(CoreError::CoordinateLimit {
+                    call: CALL,
+                    what: format!("position {i}"),
+                    value: f64::from(wp.abs().max_element()),
+                    limit: f64::from(MAX_COORDINATE),
+                });
+            }
+            let normal = arrays.normals.map(|ns| ns[i]);
+            if let Some(v) = normal.filter(|v| !v.is_finite()) {
+                return Err(CoreError::NonFinite {
+                    call: CALL,
+                    what: format!("normal {i} ({v})"),
+                });
+            }
+            let uv = arrays.uvs.map(|t| t[i]);
+            if let Some(t) = uv.filter(|t| !t.is_finite()) {
+                return Err(CoreError::NonFinite {
+                    call: CALL,
+                    what: format!("texture coordinate {i} ({t})"),
+                });
+            }
+            let n = normal.filter(|v| *v != Vec3::ZERO).and_then(|v| {
+                let w = nm * v;
+                w.is_finite().then_some(w)
+            });
+            vertices.push(Vertex { p: wp, n, uv });
+        }
+        emit_triangles(&mut d.mesh, material, &tris, |k| &vertices[indices[k] as usize]);
         Ok(())
     }
 
@@ -842,4 +959,155 @@ pub(crate) struct TestHooks {
     pub(crate) fail_builds: Option<usize>,
     /// Background builds fail.
     pub(crate) fail_promotions: bool,
+}
+
+#[cfg(test)]
+mod draw_elements_tests {
+    use super::*;
+
+    /// The pending definition of `id`.
+    fn pending(ctx: &Context, id: ObjectId) -> ObjectMesh {
+        ctx.objects[id.index as usize].pending.clone().expect("defined")
+    }
+
+    /// Positions of a bent strip with a degenerate corner, normals (one
+    /// zero), texture coordinates.
+    fn arrays() -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec2>) {
+        let p = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.2),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, -0.3),
+            Vec3::new(0.0, 2.0, 0.5),
+            Vec3::new(0.0, 2.0, 0.5),
+        ];
+        let n = vec![Vec3::Z, Vec3::new(0.1, 0.0, 1.0), Vec3::Z, Vec3::ZERO, Vec3::Y, Vec3::Y];
+        let t = (0..6)
+            .map(|i| Vec2::new(i as f32 * 0.25, 1.0 - i as f32 * 0.1))
+            .collect();
+        (p, n, t)
+    }
+
+    #[test]
+    fn draw_elements_gives_the_triangles_of_the_same_calls_vertex_by_vertex() {
+        let (p, n, t) = arrays();
+        let m = Mat4::from_scale_rotation_translation(
+            Vec3::new(2.0, 0.5, 1.0),
+            glam::Quat::from_rotation_y(0.7),
+            Vec3::new(1.0, -2.0, 3.0),
+        );
+        for kind in [
+            PrimitiveKind::Triangles,
+            PrimitiveKind::TriangleStrip,
+            PrimitiveKind::TriangleFan,
+        ] {
+            let indices: Vec<u32> = vec![0, 1, 2, 2, 1, 3, 4, 5, 3];
+            for with in [(true, true), (false, true), (true, false), (false, false)] {
+                let normals = with.0.then_some(&n[..]);
+                let uvs = with.1.then_some(&t[..]);
+                let mut ctx = Context::new();
+                let (a, b) = (ctx.gen_object(), ctx.gen_object());
+                // The oracle: the same primitive vertex by vertex.
+                ctx.begin_object(a).unwrap();
+                ctx.mult_matrix(m).unwrap();
+                ctx.begin(kind).unwrap();
+                for &i in &indices {
+                    let i = i as usize;
+                    match normals {
+                        Some(ns) if ns[i] != Vec3::ZERO => ctx.normal(ns[i]).unwrap(),
+                        _ => ctx.clear_normal().unwrap(),
+                    }
+                    if let Some(ts) = uvs {
+                        ctx.tex_coord(ts[i]).unwrap();
+                    }
+                    ctx.vertex(p[i]).unwrap();
+                }
+                ctx.end().unwrap();
+                ctx.end_object().unwrap();
+                ctx.begin_object(b).unwrap();
+                ctx.mult_matrix(m).unwrap();
+                let arr = VertexArrays {
+                    positions: &p,
+                    normals,
+                    uvs,
+                };
+                ctx.draw_elements(kind, &arr, &indices).unwrap();
+                ctx.end_object().unwrap();
+                let (want, got) = (pending(&ctx, a), pending(&ctx, b));
+                assert!(got.dropped > 0, "{kind:?}: the degenerate triangle is dropped");
+                assert_eq!(got, want, "{kind:?} {with:?}: the same bytes");
+            }
+        }
+    }
+
+    #[test]
+    fn broken_arrays_are_typed_errors_and_add_nothing() {
+        let (p, n, t) = arrays();
+        let mut ctx = Context::new();
+        let id = ctx.gen_object();
+        let arr = VertexArrays {
+            positions: &p,
+            normals: Some(&n),
+            uvs: Some(&t),
+        };
+        assert!(matches!(
+            ctx.draw_elements(PrimitiveKind::Triangles, &arr, &[0, 1, 2]),
+            Err(CoreError::NotInObject { .. })
+        ));
+        ctx.begin_object(id).unwrap();
+        let e = ctx
+            .draw_elements(PrimitiveKind::Triangles, &arr, &[0, 1, 6])
+            .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                CoreError::VertexIndex {
+                    index: 6,
+                    at: 2,
+                    vertices: 6,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("draw_elements: index 6"), "{e}");
+        let short = VertexArrays {
+            normals: Some(&n[..3]),
+            ..arr
+        };
+        let e = ctx
+            .draw_elements(PrimitiveKind::Triangles, &short, &[0, 1, 2])
+            .unwrap_err();
+        assert!(e.to_string().contains("normal array has 3 entries"), "{e}");
+        let mut bad = p.clone();
+        bad[4].y = f32::NAN;
+        let nan = VertexArrays { positions: &bad, ..arr };
+        let e = ctx
+            .draw_elements(PrimitiveKind::Triangles, &nan, &[0, 1, 2])
+            .unwrap_err();
+        assert!(e.to_string().contains("position 4"), "{e}");
+        let mut far = p.clone();
+        far[1].x = 1e30;
+        let e = ctx
+            .draw_elements(
+                PrimitiveKind::Triangles,
+                &VertexArrays { positions: &far, ..arr },
+                &[0, 1, 2],
+            )
+            .unwrap_err();
+        assert!(matches!(e, CoreError::CoordinateLimit { .. }), "{e}");
+        let e = ctx.draw_elements(PrimitiveKind::Triangles, &arr, &[0, 1]).unwrap_err();
+        assert!(matches!(e, CoreError::IncompletePrimitive { .. }), "{e}");
+        ctx.begin(PrimitiveKind::Triangles).unwrap();
+        assert!(matches!(
+            ctx.draw_elements(PrimitiveKind::Triangles, &arr, &[0, 1, 2]),
+            Err(CoreError::PrimitiveOpen { .. })
+        ));
+        ctx.end().unwrap();
+        ctx.end_object().unwrap();
+        assert!(
+            pending(&ctx, id).triangles.is_empty(),
+            "nothing of a refused call was added"
+        );
+    }
 }

@@ -147,6 +147,30 @@ pub enum CoreError {
         /// What it reported.
         reason: String,
     },
+    /// An index of an indexed primitive beyond its vertex arrays.
+    #[error("{call}: index {index} (element {at} of the indices) is beyond the {vertices} vertices of the arrays")]
+    VertexIndex {
+        /// The call.
+        call: &'static str,
+        /// The index given.
+        index: u32,
+        /// Its place in the index list.
+        at: usize,
+        /// Vertices in the arrays.
+        vertices: usize,
+    },
+    /// Vertex arrays of different lengths.
+    #[error("{call}: the {what} array has {len} entries; the positions have {vertices} (one per vertex is needed)")]
+    ArrayLength {
+        /// The call.
+        call: &'static str,
+        /// Which array.
+        what: &'static str,
+        /// Its length.
+        len: usize,
+        /// Number of positions.
+        vertices: usize,
+    },
     /// A value beyond a named limit, such as [`crate::MAX_IMAGE_SIDE`].
     #[error("{call}: {what} is {value}, outside the limit {limit}")]
     Limit {

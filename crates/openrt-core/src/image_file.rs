@@ -56,6 +56,11 @@ impl Image {
     }
 }
 
+/// The permissions of a file [`write_atomically`] finishes (Unix): read and
+/// write for its owner, read for everyone else.
+#[cfg(unix)]
+pub const FINISHED_MODE: u32 = 0o644;
+
 /// Writes a file atomically: `write` fills a temporary file in the target's
 /// folder, which is synced and then renamed to `path`. When `write`, the
 /// sync or the rename fails, the temporary file is removed and `path` keeps
@@ -75,11 +80,13 @@ pub fn write_atomically(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".openrt-")
-        .suffix(".part")
-        .tempfile_in(dir)
-        .map_err(fail)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".openrt-").suffix(".part");
+    // A temporary file is private (0600); the finished file is readable as
+    // one written in place would be.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(FINISHED_MODE));
+    let mut tmp = builder.tempfile_in(dir).map_err(fail)?;
     {
         let mut out = std::io::BufWriter::new(tmp.as_file_mut());
         write(&mut out).map_err(fail)?;
@@ -155,6 +162,12 @@ mod tests {
             vec!["a.png".to_owned()],
             "no temporary file is left"
         );
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode, FINISHED_MODE, "readable as a file written in place: {mode:o}");
+        }
     }
 
     #[test]

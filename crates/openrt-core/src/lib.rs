@@ -100,11 +100,13 @@ mod tracer;
 pub use camera::Camera;
 pub use changes::{ChangeSet, InstanceChange, MAX_SLOT_GROWTH, MaterialData, MeshData, ObjectChange, TextureData};
 pub use commit::{BuildRecord, CommitStats, MAX_PROMOTIONS_IN_FLIGHT};
-pub use context::Context;
+pub use context::{Context, VertexArrays};
 #[cfg(feature = "embree")]
 pub use embree_backend::EmbreeScene;
 pub use error::CoreError;
 pub use ids::{InstanceId, MaterialId, ObjectId, TextureId};
+#[cfg(unix)]
+pub use image_file::FINISHED_MODE;
 pub use image_file::write_atomically;
 pub use instance::{InstanceRecord, MIN_TRANSFORM_CONDITIONING};
 pub use light::{Environment, PointLight};
@@ -132,7 +134,7 @@ pub mod prelude {
     pub use crate::{
         Accel, Backend, Camera, Context, CoreError, Environment, Image, InstanceId, Material, MaterialId, ObjectId,
         PointLight, PrimitiveKind, RenderMode, RenderSettings, Renderer, Scene, SceneHit, Surface, Texture,
-        TextureFilter, TextureId,
+        TextureFilter, TextureId, VertexArrays,
     };
     pub use glam::{Mat4, Vec2, Vec3};
     pub use openrt_accel::Ray;

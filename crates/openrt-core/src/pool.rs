@@ -61,6 +61,12 @@ impl ThreadPool {
         Arc::ptr_eq(&self.inner, &other.inner)
     }
 
+    /// Runs `f` on the pool's threads: rayon's parallel iterators inside it
+    /// use them (as the commit and the renderer do), not rayon's global pool.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        self.inner.install(f)
+    }
+
     /// The rayon pool.
     pub(crate) fn rayon(&self) -> &Arc<rayon::ThreadPool> {
         &self.inner

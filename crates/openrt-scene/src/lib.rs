@@ -26,7 +26,10 @@ mod texture_io;
 
 pub use builtin::{DEFAULT_SCENE_RON, default_scene};
 pub use error::{SceneError, SceneWarning};
-pub use gltf_scene::{GLTF_FRAME_RATE, GLTF_SUPPORTED_REQUIRED, GltfPlayer};
+pub use gltf_scene::{
+    DeformTimes, GLTF_DEFORMING_ACCEL, GLTF_FRAME_RATE, GLTF_MAX_INFLUENCES, GLTF_SUPPORTED_REQUIRED, GltfAnimation,
+    GltfOptions, GltfPlayer, MAX_FIGURE_TRIANGLES, MotionClasses, skinned_figure_glb,
+};
 pub use limits::{
     MAX_ANIMART_TRIANGLES, MAX_BLOCK_NESTING, MAX_FILE_BYTES, MAX_FRAMES, MAX_HEADER_COUNT, MAX_INCLUDE_DEPTH,
     MAX_INCLUDES, MAX_SCENE_TRIANGLES, MAX_SPHERE_SEGMENTS, MAX_TERRAIN_GRID, MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS,

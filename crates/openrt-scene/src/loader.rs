@@ -84,6 +84,32 @@ impl Morph {
 }
 
 impl LoadedScene {
+    /// Instances and objects by motion class: tracked and swaying
+    /// instances move affinely, objects with vertex keys deform.
+    #[must_use]
+    pub fn motion_classes(&self) -> crate::MotionClasses {
+        let scene = self.ctx.scene();
+        let morphing = |o| self.morphs.iter().any(|m| m.id == o);
+        let mut moving: Vec<InstanceId> = self
+            .tracked
+            .iter()
+            .map(|t| t.0)
+            .chain(self.sway.iter().map(|s| s.0))
+            .collect();
+        moving.sort_unstable();
+        moving.dedup();
+        crate::MotionClasses {
+            static_instances: scene
+                .instances()
+                .iter()
+                .filter(|r| !moving.contains(&r.id) && !morphing(r.object))
+                .count(),
+            affine_instances: moving.len(),
+            deforming_objects: self.morphs.len(),
+            deforming_triangles: self.morphs.iter().map(|m| m.triangles.len()).sum(),
+        }
+    }
+
     /// Moves keyframed instances, swaying trees and morphing objects to
     /// `time`, then commits. A static scene only commits.
     pub fn set_time(&mut self, time: f32) -> Result<CommitStats, SceneError> {

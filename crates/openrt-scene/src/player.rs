@@ -6,7 +6,7 @@ use std::sync::Arc;
 use openrt_core::{Camera, CommitStats, Context, Environment, RenderSettings};
 
 use crate::aff::AffPlayer;
-use crate::gltf_scene::GltfPlayer;
+use crate::gltf_scene::{GltfOptions, GltfPlayer, MotionClasses};
 use crate::{LoadedScene, RonScene, SceneError, SceneWarning, default_scene, load_ron_any};
 
 /// A scene that can be stepped through time.
@@ -23,9 +23,34 @@ impl ScenePlayer {
     /// Opens a scene by extension (`.aff`, `.ron`, `.gltf` or `.glb`); `None`
     /// opens the built-in default scene.
     pub fn open(path: Option<&Path>) -> Result<Self, SceneError> {
+        Self::open_with(path, &GltfOptions::default())
+    }
+
+    /// [`ScenePlayer::open`] with the scene, animation and camera a glTF
+    /// file plays; choosing them for another kind of scene is an error.
+    pub fn open_with(path: Option<&Path>, gltf: &GltfOptions) -> Result<Self, SceneError> {
         let Some(path) = path else {
+            if *gltf != GltfOptions::default() {
+                return Err(SceneError::Invalid {
+                    path: "<built-in scene>".into(),
+                    what: "--scene, --animation and --camera choose within glTF files only".into(),
+                });
+            }
             return Ok(Self::Ron(Box::new(default_scene()?)));
         };
+        let is_gltf = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
+        if is_gltf {
+            return Ok(Self::Gltf(Box::new(GltfPlayer::load_with(path, gltf)?)));
+        }
+        if *gltf != GltfOptions::default() {
+            return Err(SceneError::Invalid {
+                path: path.to_path_buf(),
+                what: "--scene, --animation and --camera choose within glTF files only".into(),
+            });
+        }
         match path
             .extension()
             .and_then(|e| e.to_str())
@@ -48,7 +73,12 @@ impl ScenePlayer {
     /// [`ScenePlayer::open`], with every warning an error: the first one
     /// (such as an AFF key that goes back in time) fails the load.
     pub fn open_strict(path: Option<&Path>) -> Result<Self, SceneError> {
-        let p = Self::open(path)?;
+        Self::open_strict_with(path, &GltfOptions::default())
+    }
+
+    /// [`ScenePlayer::open_with`], with every warning an error.
+    pub fn open_strict_with(path: Option<&Path>, gltf: &GltfOptions) -> Result<Self, SceneError> {
+        let p = Self::open_with(path, gltf)?;
         match p.warnings().first() {
             Some(w) => Err(w.clone().into_error()),
             None => Ok(p),
@@ -63,6 +93,25 @@ impl ScenePlayer {
             Self::Ron(_) => &[],
             Self::Aff(a) => &a.scene().warnings,
             Self::Gltf(g) => g.warnings(),
+        }
+    }
+
+    /// The scene's instances and objects by the paper's motion classes.
+    #[must_use]
+    pub fn motion_classes(&self) -> MotionClasses {
+        match self {
+            Self::Ron(s) => s.motion_classes(),
+            Self::Aff(a) => a.motion_classes(),
+            Self::Gltf(g) => g.motion_classes(),
+        }
+    }
+
+    /// The names of a glTF file's animations, by index (empty for other scenes).
+    #[must_use]
+    pub fn animation_names(&self) -> Vec<String> {
+        match self {
+            Self::Gltf(g) => g.animation_names().to_vec(),
+            _ => Vec::new(),
         }
     }
 
@@ -138,6 +187,19 @@ impl ScenePlayer {
             Self::Aff(a) => &mut a.ctx,
             Self::Gltf(g) => &mut g.ctx,
         }
+    }
+
+    /// The structure of every object, deforming glTF objects included
+    /// (which otherwise keep [`GLTF_DEFORMING_ACCEL`](crate::GLTF_DEFORMING_ACCEL)).
+    pub fn set_accel(&mut self, accel: openrt_core::Accel) -> Result<(), SceneError> {
+        self.ctx_mut().set_accel(accel);
+        if let Self::Gltf(g) = self {
+            g.set_deforming_accel(None).map_err(|source| SceneError::Core {
+                path: "<glTF scene>".into(),
+                source,
+            })?;
+        }
+        Ok(())
     }
 
     /// The resolution the scene asks for, default mode and depth.

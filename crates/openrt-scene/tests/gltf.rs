@@ -61,7 +61,8 @@ fn one_mesh_under_two_nodes_is_one_object_with_two_static_instances() {
     });
     let path = b.write_gltf(dir.path(), "two", doc);
     let mut p = player(&path);
-    assert_eq!(p.motion_classes(), (2, 0));
+    let classes = p.motion_classes();
+    assert_eq!((classes.static_instances, classes.affine_instances), (2, 0));
     assert_eq!(p.frames(), 1);
     p.set_time(0.0).unwrap();
     let scene = p.ctx.scene();
@@ -144,8 +145,9 @@ fn node_animation_moves_the_node_and_its_children_with_each_interpolation() {
                 glb,
             );
             let mut p = player(&path);
+            let classes = p.motion_classes();
             assert_eq!(
-                p.motion_classes(),
+                (classes.static_instances, classes.affine_instances),
                 (1, 2),
                 "the node and its child move, the other stays"
             );
@@ -377,4 +379,43 @@ fn broken_and_unsupported_files_are_typed_errors_naming_the_place() {
             .unwrap_or_else(|| panic!("{keep} bytes loaded"));
         assert!(e.to_string().contains("cut.glb"), "{keep} bytes: {e}");
     }
+}
+
+#[test]
+fn transmission_and_ior_refract_and_emission_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Builder::default();
+    let meshes = quad(&mut b);
+    let doc = json!({
+        "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_ior"],
+        "extensionsRequired": ["KHR_materials_transmission"],
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": meshes,
+        "materials": [{
+            "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.1},
+            "emissiveFactor": [1.0, 0.5, 0.0],
+            "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.75}, "KHR_materials_ior": {"ior": 1.33}}
+        }],
+    });
+    let path = b.write_gltf(dir.path(), "glass", doc);
+    let p = player(&path);
+    let scene = p.ctx.scene();
+    let glass = scene
+        .materials()
+        .iter()
+        .find(|m| m.transmission > 0.0)
+        .expect("a transmitting material");
+    assert_eq!(glass.transmission, 0.75);
+    assert_eq!(glass.ior, 1.33);
+    assert!(
+        (glass.diffuse - Vec3::new(0.125, 0.125, 0.25)).length() < 1e-6,
+        "{glass:?}"
+    );
+    assert!(
+        p.warnings().iter().any(|w| w.to_string().contains("emissiveFactor")),
+        "{:?}",
+        p.warnings()
+    );
 }

@@ -276,8 +276,9 @@ fn ron_mutants() {
     check(&report);
 }
 
-/// A small animated glTF scene: two meshes, three nodes (one animated with a
-/// child), a camera, a point light and a material.
+/// A small animated glTF scene: three meshes, nodes (one animated with a
+/// child), a camera, a point light, a material, and a skinned and morphed
+/// mesh with its joints and weights animated.
 fn gltf_scene(b: &mut gltf_builder::Builder) -> serde_json::Value {
     let pos = b.floats(
         &[-0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0],
@@ -302,26 +303,75 @@ fn gltf_scene(b: &mut gltf_builder::Builder) -> serde_json::Value {
         "VEC3",
         3,
     );
+    // A skinned, morphed quad: two joints (nodes 6 and 7), a morph target,
+    // a rotation of joint 7 and the morph weight animated.
+    let joints = b.shorts(&[0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0], "VEC4", 4);
+    let weights = b.floats(
+        &[
+            1.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.7, 0.3, 0.0, 0.0,
+        ],
+        "VEC4",
+        4,
+    );
+    let ibm = b.floats(
+        &[
+            1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, //
+            1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 1.0,
+        ],
+        "MAT4",
+        16,
+    );
+    let target = b.floats(&[0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.0], "VEC3", 3);
+    let turn = b.floats(
+        &[
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+            0.0,
+            std::f32::consts::FRAC_1_SQRT_2,
+            std::f32::consts::FRAC_1_SQRT_2,
+        ],
+        "VEC4",
+        4,
+    );
+    let times = b.floats(&[0.0, 1.0], "SCALAR", 1);
+    let morph = b.floats(&[0.0, 1.0], "SCALAR", 1);
     json!({
         "extensionsUsed": ["KHR_lights_punctual"],
         "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "color": [1.0, 1.0, 1.0], "intensity": 1.0}]}},
         "scene": 0,
-        "scenes": [{"nodes": [0, 2, 3, 4]}],
+        "scenes": [{"nodes": [0, 2, 3, 4, 5, 6]}],
         "nodes": [
             {"mesh": 0, "children": [1]},
             {"mesh": 1, "translation": [0.0, 1.0, 0.0], "scale": [0.5, 0.5, 0.5]},
             {"mesh": 0, "rotation": [0.0, 0.382_683_43, 0.0, 0.923_879_5], "translation": [-2.0, 0.0, 0.0]},
             {"camera": 0, "translation": [0.0, 0.5, 4.0]},
-            {"translation": [1.0, 3.0, 2.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}
+            {"translation": [1.0, 3.0, 2.0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"mesh": 2, "skin": 0},
+            {"children": [7], "translation": [0.0, -1.0, 0.0]},
+            {"translation": [1.0, 0.0, 0.0]}
         ],
+        "skins": [{"joints": [6, 7], "inverseBindMatrices": ibm, "skeleton": 6}],
         "cameras": [{"type": "perspective", "perspective": {"yfov": 0.9, "znear": 0.01}}],
         "meshes": [
             {"primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx, "material": 0}]},
-            {"primitives": [{"attributes": {"POSITION": fan}, "mode": 6}]}
+            {"primitives": [{"attributes": {"POSITION": fan}, "mode": 6}]},
+            {"primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm, "JOINTS_0": joints, "WEIGHTS_0": weights},
+                "indices": idx, "targets": [{"POSITION": target}]}], "weights": [0.0]}
         ],
         "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.7, 0.6, 0.2, 1.0], "metallicFactor": 0.5, "roughnessFactor": 0.3}, "doubleSided": true}],
-        "animations": [{"channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
-            "samplers": [{"input": input, "output": output, "interpolation": "CUBICSPLINE"}]}]
+        "animations": [{"channels": [
+                {"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                {"sampler": 1, "target": {"node": 7, "path": "rotation"}},
+                {"sampler": 2, "target": {"node": 5, "path": "weights"}}
+            ],
+            "samplers": [
+                {"input": input, "output": output, "interpolation": "CUBICSPLINE"},
+                {"input": times, "output": turn},
+                {"input": times, "output": morph, "interpolation": "STEP"}
+            ]}]
     })
 }
 

@@ -17,8 +17,8 @@ use super::goals::REFERENCE_SPP;
 #[cfg(feature = "embree")]
 use super::results::EmbreeRow;
 use super::results::{
-    BuilderRow, BuilderRun, ImageDiff, KindRow, OracleCheck, PhaseRow, Quality, QualityRun, Rebuild, Results, Row,
-    WorstDiff,
+    BuilderRow, BuilderRun, DeformRow, ImageDiff, KindRow, OracleCheck, PhaseRow, Quality, QualityRun, Rebuild,
+    Results, Row, WorstDiff,
 };
 
 pub(super) fn median(mut v: Vec<f64>) -> f64 {
@@ -756,6 +756,60 @@ fn rebuilds(o: &BenchOptions) -> Result<Vec<Rebuild>, String> {
     Ok(rows)
 }
 
+/// Frames played of each skinned figure (after the first, which builds).
+pub(super) const DEFORM_FRAMES: u32 = 8;
+
+/// A skinned glTF figure of each size in `o.deform_sizes` (the generator
+/// of `scenes/walker.glb`, 8 joints) played for [`DEFORM_FRAMES`] frames
+/// on each thread count, with kd-trees and with BVHs: skinning, the API's
+/// redefinition, the refit in the commit and the rest of the commit.
+fn deforming(o: &BenchOptions) -> Result<Vec<DeformRow>, String> {
+    let mut rows = Vec::new();
+    for &n in &o.deform_sizes {
+        let bytes = openrt_scene::skinned_figure_glb(n, 8);
+        for &threads in &o.threads {
+            for accel in [Accel::Kd, Accel::Bvh] {
+                eprintln!(
+                    "bench: skinned figure, {n} triangles, {threads} threads, {}",
+                    accel.name()
+                );
+                let mut p = openrt_scene::GltfPlayer::from_slice(&bytes).map_err(|e| e.to_string())?;
+                p.ctx.set_threads(threads).map_err(|e| e.to_string())?;
+                p.ctx.set_promote_after(None);
+                p.ctx.set_accel(accel);
+                p.set_deforming_accel(None).map_err(|e| e.to_string())?;
+                p.set_time(0.0).map_err(|e| e.to_string())?;
+                let (mut skin, mut define, mut build, mut other) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+                let mut refitted = 0;
+                let mut triangles = 0;
+                for f in 1..=DEFORM_FRAMES {
+                    let st = p.set_time(p.time_of(f)).map_err(|e| e.to_string())?;
+                    let d = p.deform_times();
+                    let b: f64 = st.builds.iter().map(|b| b.ms).sum();
+                    refitted += usize::from(st.builds.iter().all(|b| b.refitted));
+                    triangles = st.builds.iter().map(|b| b.triangles).sum();
+                    skin.push(d.skin_ms);
+                    define.push(d.define_ms);
+                    build.push(b);
+                    other.push(st.total_ms - b);
+                }
+                rows.push(DeformRow {
+                    triangles,
+                    threads,
+                    accel: accel.name(),
+                    skin_ms: median(skin),
+                    define_ms: median(define),
+                    build_ms: median(build),
+                    other_commit_ms: median(other),
+                    refitted,
+                    frames: DEFORM_FRAMES as usize,
+                });
+            }
+        }
+    }
+    Ok(rows)
+}
+
 /// The same frames and primary rays through an Embree two-level scene:
 /// per-frame rebuild time and single-ray throughput, one thread each.
 #[cfg(feature = "embree")]
@@ -907,9 +961,11 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
         eprintln!("bench: embree on {s}");
         embree.push(embree_side_by_side(o, s)?);
     }
+    let deforming = deforming(o)?;
     Ok(Results {
         frames,
         phases: phase_rows,
+        deforming,
         diffs,
         kinds,
         quality,

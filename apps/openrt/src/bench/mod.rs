@@ -21,6 +21,8 @@ pub struct BenchOptions {
     pub width: u32,
     pub height: u32,
     pub threads: Vec<usize>,
+    /// Triangles of the skinned glTF figures whose per-frame cost is measured.
+    pub deform_sizes: Vec<usize>,
     pub out: PathBuf,
     pub command: String,
 }

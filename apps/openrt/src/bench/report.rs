@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use openrt_core::Backend;
 
 use super::BenchOptions;
+use super::goals;
 use super::goals::{
     CLOSE_DB, PACKETS_VS_SINGLE, PAPER, REFERENCE_SPP, TRILINEAR_ERROR_RATIO, TRILINEAR_TIME_RATIO, targets, verdict,
 };
@@ -28,6 +29,7 @@ pub(super) fn render(o: &BenchOptions, res: &Results, plot: &Result<String, Stri
     }
     builder_sections(&mut md, res);
     rebuild_table(&mut md, res);
+    deform_table(&mut md, res);
     embree_table(&mut md, res);
     match plot {
         Ok(file) => {
@@ -482,6 +484,36 @@ fn rebuild_table(md: &mut String, res: &Results) {
             r.bvh_refit_ms,
             r.bvh_refits,
             r.frames
+        );
+    }
+}
+
+/// Skinned glTF figures played: what a deforming mesh costs per frame.
+fn deform_table(md: &mut String, res: &Results) {
+    if res.deforming.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Deforming glTF meshes\n\nThe skinned figure of `scenes/walker.glb` (`openrt_scene::skinned_figure_glb`: a tube on 8 joints, each vertex weighted between two) at each size, played for {} frames after the first; per frame medians: skinning the vertices on the pool (`GltfPlayer::deform_times`), redefining the object through the API (vertex by vertex, with the commit's checks), its build in the commit (a refit of the last frame's tree unless the refit's SAH cost check rebuilds it; `refitted` counts the frames whose build was a refit), and the rest of the commit (instance records, the top level). Goal: skinning + refit of 100k triangles <= {} ms on the most threads.\n\n| triangles | threads | structure | skinning ms | redefinition ms | build (refit) ms | rest of commit ms | refitted | skinning + refit ms | whole frame before rendering ms |\n|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|",
+        super::measure::DEFORM_FRAMES,
+        goals::SKIN_REFIT_100K_MS
+    );
+    for r in &res.deforming {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {} / {} | {:.2} | {:.2} |",
+            r.triangles,
+            r.threads,
+            r.accel,
+            r.skin_ms,
+            r.define_ms,
+            r.build_ms,
+            r.other_commit_ms,
+            r.refitted,
+            r.frames,
+            r.skin_refit_ms(),
+            r.total_ms()
         );
     }
 }

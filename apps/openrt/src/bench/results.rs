@@ -155,6 +155,36 @@ impl PhaseRow {
     }
 }
 
+/// A skinned glTF figure played frame after frame: per frame medians of
+/// its deformation and commit.
+pub(super) struct DeformRow {
+    pub(super) triangles: usize,
+    pub(super) threads: usize,
+    pub(super) accel: &'static str,
+    /// Skinning the vertices on the pool.
+    pub(super) skin_ms: f64,
+    /// Redefining the object through the API (vertex by vertex).
+    pub(super) define_ms: f64,
+    /// The object's build in the commit (a refit of the last frame's tree).
+    pub(super) build_ms: f64,
+    /// The rest of the commit (instance records, the top level).
+    pub(super) other_commit_ms: f64,
+    pub(super) refitted: usize,
+    pub(super) frames: usize,
+}
+
+impl DeformRow {
+    /// Skinning plus the refit: the per-frame figure.
+    pub(super) fn skin_refit_ms(&self) -> f64 {
+        self.skin_ms + self.build_ms
+    }
+
+    /// Everything a frame spends before rendering.
+    pub(super) fn total_ms(&self) -> f64 {
+        self.skin_ms + self.define_ms + self.build_ms + self.other_commit_ms
+    }
+}
+
 /// Everything a run measured.
 pub(super) struct Results {
     pub(super) frames: Vec<Row>,
@@ -166,6 +196,7 @@ pub(super) struct Results {
     pub(super) rebuild_threads: usize,
     pub(super) rebuilds: Vec<Rebuild>,
     pub(super) embree: Vec<EmbreeRow>,
+    pub(super) deforming: Vec<DeformRow>,
     /// The packet width of the run's renderers.
     pub(super) lanes: usize,
     /// The machine, as far as the standard library tells.

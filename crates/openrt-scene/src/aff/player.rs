@@ -156,6 +156,18 @@ impl AffPlayer {
         })
     }
 
+    /// Instances and objects by motion class: the static mesh, the
+    /// instances of animated transform nodes, the redefined triangles.
+    #[must_use]
+    pub fn motion_classes(&self) -> crate::MotionClasses {
+        crate::MotionClasses {
+            static_instances: usize::from(!self.scene.static_mesh.is_empty()),
+            affine_instances: self.node_instances.iter().flatten().count(),
+            deforming_objects: usize::from(self.animated_object.is_some()),
+            deforming_triangles: self.scene.animated.len(),
+        }
+    }
+
     /// The parsed file.
     #[must_use]
     pub fn scene(&self) -> &AffScene {

@@ -125,6 +125,103 @@ impl Channel {
     }
 }
 
+/// A morph-weight channel: `width` weights per key (three times that per
+/// key for cubic splines: in-tangents, values, out-tangents).
+#[derive(Clone, Debug)]
+pub(crate) struct WeightChannel {
+    pub node: usize,
+    pub interpolation: Interpolation,
+    pub times: Vec<f32>,
+    pub values: Vec<f32>,
+    pub width: usize,
+}
+
+impl WeightChannel {
+    /// Checks the keys as [`Channel::check`] does, with `width` values per key.
+    pub fn check(&self) -> Result<(), String> {
+        let per_key = self.width
+            * if self.interpolation == Interpolation::CubicSpline {
+                3
+            } else {
+                1
+            };
+        // The key times' rules are the node channels'; the values are
+        // checked here, per weight.
+        let times = Channel {
+            node: self.node,
+            property: Property::Scale,
+            interpolation: Interpolation::Step,
+            times: self.times.clone(),
+            values: vec![glam::Vec4::ZERO; self.times.len()],
+        };
+        times.check()?;
+        if self.width == 0 {
+            return Err("morph weights animate a mesh without morph targets".into());
+        }
+        if self.values.len() != self.times.len() * per_key {
+            return Err(format!(
+                "{} keys of {} morph weights need {} output values, the sampler has {}",
+                self.times.len(),
+                self.width,
+                self.times.len() * per_key,
+                self.values.len()
+            ));
+        }
+        if self.values.iter().any(|v| !v.is_finite()) {
+            return Err("an output value is not finite".into());
+        }
+        Ok(())
+    }
+
+    /// The last key's time.
+    pub fn end(&self) -> f32 {
+        self.times.last().copied().unwrap_or(0.0)
+    }
+
+    /// The weights at `t` (clamped to the keys' range).
+    pub fn sample(&self, t: f32) -> Vec<f32> {
+        let (n, w) = (self.times.len(), self.width);
+        let cubic = self.interpolation == Interpolation::CubicSpline;
+        // Key k's values, in-tangents and out-tangents.
+        let part = |k: usize, which: usize| {
+            let start = if cubic { (3 * k + which) * w } else { k * w };
+            &self.values[start..start + w]
+        };
+        let value = |k: usize| part(k, 1).to_vec();
+        if n == 1 || t <= self.times[0] {
+            return value(0);
+        }
+        if t >= self.times[n - 1] {
+            return value(n - 1);
+        }
+        let k = self.times.partition_point(|&x| x <= t) - 1;
+        let (t0, t1) = (self.times[k], self.times[k + 1]);
+        let dt = t1 - t0;
+        let s = (t - t0) / dt;
+        match self.interpolation {
+            Interpolation::Step => value(k),
+            Interpolation::Linear => value(k)
+                .iter()
+                .zip(value(k + 1))
+                .map(|(a, b)| a + (b - a) * s)
+                .collect(),
+            Interpolation::CubicSpline => {
+                let (s2, s3) = (s * s, s * s * s);
+                (0..w)
+                    .map(|i| {
+                        let (p0, m0) = (part(k, 1)[i], part(k, 2)[i] * dt);
+                        let (p1, m1) = (part(k + 1, 1)[i], part(k + 1, 0)[i] * dt);
+                        p0 * (2.0 * s3 - 3.0 * s2 + 1.0)
+                            + m0 * (s3 - 2.0 * s2 + s)
+                            + p1 * (-2.0 * s3 + 3.0 * s2)
+                            + m1 * (s3 - s2)
+                    })
+                    .collect()
+            }
+        }
+    }
+}
+
 /// A node's local transform as translation, rotation and scale.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Trs {
@@ -225,6 +322,40 @@ mod tests {
         // The slope at the start is the out-tangent: 1 per second.
         let slope = c.sample(1e-3).x / 1e-3;
         assert!((slope - 1.0).abs() < 1e-2, "{slope}");
+    }
+
+    #[test]
+    fn morph_weights_are_sampled_per_target() {
+        let c = WeightChannel {
+            node: 0,
+            interpolation: Interpolation::Linear,
+            times: vec![0.0, 2.0],
+            values: vec![0.0, 1.0, 1.0, 0.0],
+            width: 2,
+        };
+        c.check().unwrap();
+        assert_eq!(c.sample(0.5), vec![0.25, 0.75]);
+        assert_eq!(c.sample(5.0), vec![1.0, 0.0]);
+        let step = WeightChannel {
+            interpolation: Interpolation::Step,
+            ..c.clone()
+        };
+        assert_eq!(step.sample(1.99), vec![0.0, 1.0]);
+        // A cubic spline with zero tangents eases: 1/2 at the middle.
+        let spline = WeightChannel {
+            interpolation: Interpolation::CubicSpline,
+            values: vec![0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0],
+            ..c.clone()
+        };
+        spline.check().unwrap();
+        assert_eq!(spline.sample(1.0), vec![0.5, 0.5]);
+        let short = WeightChannel {
+            values: vec![0.0; 3],
+            ..c.clone()
+        };
+        assert!(short.check().unwrap_err().contains("need 4 output values"));
+        let none = WeightChannel { width: 0, ..c };
+        assert!(none.check().unwrap_err().contains("without morph targets"));
     }
 
     #[test]

@@ -14,8 +14,9 @@ use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
 use gltf::json::validation::Checked;
 use openrt_core::{Camera, Context, Environment, Material, MaterialId, ObjectId, PointLight, PrimitiveKind, Texture};
 
-use super::animation::{Channel, Interpolation, Property, Trs};
-use super::{GLTF_SUPPORTED_REQUIRED, GltfPlayer};
+use super::animation::{Channel, Interpolation, Property, Trs, WeightChannel};
+use super::deform::{self, Deformer, GLTF_MAX_INFLUENCES, Influences, Prim, Shape, Skin, Target};
+use super::{GLTF_SUPPORTED_REQUIRED, GltfAnimation, GltfOptions, GltfPlayer};
 use crate::limits::{MAX_FILE_BYTES, MAX_SCENE_TRIANGLES, MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS};
 use crate::{SceneError, SceneWarning};
 
@@ -95,6 +96,12 @@ fn precheck(path: &Path, root: &gltf::json::Root) -> Result<(), SceneError> {
                     Checked::Valid(gltf::json::mesh::Semantic::TexCoords(0)) => {
                         of_kind(at(), a.value(), &[T::Vec2], &[C::F32, C::U8, C::U16])?;
                     }
+                    Checked::Valid(gltf::json::mesh::Semantic::Joints(_)) => {
+                        of_kind(at(), a.value(), &[T::Vec4], &[C::U8, C::U16])?;
+                    }
+                    Checked::Valid(gltf::json::mesh::Semantic::Weights(_)) => {
+                        of_kind(at(), a.value(), &[T::Vec4], &[C::F32, C::U8, C::U16])?;
+                    }
                     _ => {}
                 }
             }
@@ -105,7 +112,27 @@ fn precheck(path: &Path, root: &gltf::json::Root) -> Result<(), SceneError> {
                 for a in [&t.positions, &t.normals, &t.tangents].into_iter().flatten() {
                     in_range(at(), a.value(), accessors, "accessor")?;
                 }
+                for a in [&t.positions, &t.normals].into_iter().flatten() {
+                    of_kind(at(), a.value(), &[T::Vec3], &[C::F32])?;
+                }
             }
+        }
+    }
+    for (i, skin) in root.skins.iter().enumerate() {
+        let at = || format!("skins[{i}]");
+        if let Some(m) = skin.inverse_bind_matrices {
+            of_kind(at(), m.value(), &[T::Mat4], &[C::F32])?;
+        }
+        for j in skin.joints.iter().chain(skin.skeleton.iter()) {
+            in_range(at(), j.value(), root.nodes.len(), "node")?;
+        }
+    }
+    for (i, node) in root.nodes.iter().enumerate() {
+        if let Some(s) = node.skin {
+            in_range(format!("nodes[{i}]"), s.value(), root.skins.len(), "skin")?;
+        }
+        if let Some(m) = node.mesh {
+            in_range(format!("nodes[{i}]"), m.value(), root.meshes.len(), "mesh")?;
         }
     }
     for (i, cam) in root.cameras.iter().enumerate() {
@@ -214,7 +241,7 @@ impl Warnings<'_> {
     }
 }
 
-pub(super) fn load(path: &Path) -> Result<GltfPlayer, SceneError> {
+pub(super) fn load(path: &Path, options: &GltfOptions) -> Result<GltfPlayer, SceneError> {
     let bytes = std::fs::metadata(path)
         .map_err(|source| SceneError::Io {
             path: path.to_path_buf(),
@@ -232,15 +259,23 @@ pub(super) fn load(path: &Path) -> Result<GltfPlayer, SceneError> {
         path: path.to_path_buf(),
         source,
     })?;
-    load_slice(path, &bytes, Some(path.parent().unwrap_or(Path::new("."))))
+    load_slice(path, &bytes, Some(path.parent().unwrap_or(Path::new("."))), options)
 }
 
 /// Loads a glTF or GLB held in `bytes`, named `path` in messages; external
 /// files resolve against `base` (refused without one).
-pub(super) fn load_slice(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPlayer, SceneError> {
+pub(super) fn load_slice(
+    path: &Path,
+    bytes: &[u8],
+    base: Option<&Path>,
+    options: &GltfOptions,
+) -> Result<GltfPlayer, SceneError> {
     // A last guard: a panic inside the `gltf` crate on input the checks above
     // do not foresee becomes an error naming the file, not an abort.
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| load_checked(path, bytes, base))).unwrap_or_else(|p| {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        load_checked(path, bytes, base, options)
+    }))
+    .unwrap_or_else(|p| {
         let what = p
             .downcast_ref::<&str>()
             .map(ToString::to_string)
@@ -253,7 +288,12 @@ pub(super) fn load_slice(path: &Path, bytes: &[u8], base: Option<&Path>) -> Resu
 /// The message of a file that made the glTF reader fail inside.
 pub const INTERNAL_FAILURE: &str = "the glTF reader failed inside on this file";
 
-fn load_checked(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPlayer, SceneError> {
+fn load_checked(
+    path: &Path,
+    bytes: &[u8],
+    base: Option<&Path>,
+    options: &GltfOptions,
+) -> Result<GltfPlayer, SceneError> {
     if bytes.len() as u64 > MAX_FILE_BYTES {
         return Err(invalid(
             path,
@@ -283,10 +323,19 @@ fn load_checked(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPl
     }
     let buffers = gltf::import_buffers(doc, base, gltf.blob.clone()).map_err(|e| invalid(path, "buffers", e))?;
     let mut warn = Warnings { path, list: Vec::new() };
-    let scene = doc
-        .default_scene()
-        .or_else(|| doc.scenes().next())
-        .ok_or_else(|| invalid(path, "scenes", "the file has no scene"))?;
+    let scene = match options.scene {
+        Some(k) => doc.scenes().nth(k).ok_or_else(|| {
+            invalid(
+                path,
+                "scenes",
+                format!("--scene {k}: the file has {} scenes", doc.scenes().len()),
+            )
+        })?,
+        None => doc
+            .default_scene()
+            .or_else(|| doc.scenes().next())
+            .ok_or_else(|| invalid(path, "scenes", "the file has no scene"))?,
+    };
 
     // Nodes: parents, rest transforms, and the scene's nodes parents first.
     let n = doc.nodes().len();
@@ -333,60 +382,21 @@ fn load_checked(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPl
         stack.extend(node.children().map(|c| c.index()).collect::<Vec<_>>().into_iter().rev());
     }
 
-    // The first animation's node channels.
-    let mut channels = Vec::new();
-    if let Some(anim) = doc.animations().next() {
-        if doc.animations().len() > 1 {
-            warn.add(
-                "animations",
-                format!("{} animations: the first is played", doc.animations().len()),
-            );
-        }
-        for (ci, ch) in anim.channels().enumerate() {
-            let at = format!("animations[{}].samplers[{}]", anim.index(), ch.sampler().index());
-            let reader = ch.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-            let times: Vec<f32> = reader
-                .read_inputs()
-                .ok_or_else(|| invalid(path, &at, "the key times cannot be read"))?
-                .collect();
-            let (property, values): (Property, Vec<Vec4>) = match reader.read_outputs() {
-                Some(ReadOutputs::Translations(v)) => (
-                    Property::Translation,
-                    v.map(|t| Vec3::from_array(t).extend(0.0)).collect(),
-                ),
-                Some(ReadOutputs::Rotations(v)) => (Property::Rotation, v.into_f32().map(Vec4::from_array).collect()),
-                Some(ReadOutputs::Scales(v)) => (Property::Scale, v.map(|s| Vec3::from_array(s).extend(0.0)).collect()),
-                Some(ReadOutputs::MorphTargetWeights(_)) => {
-                    warn.add(
-                        &format!("animations[{}].channels[{ci}]", anim.index()),
-                        "morph target weights are not played yet: the meshes keep their base shape",
-                    );
-                    continue;
-                }
-                None => return Err(invalid(path, &at, "the key values cannot be read")),
-            };
-            let interpolation = match ch.sampler().interpolation() {
-                gltf::animation::Interpolation::Step => Interpolation::Step,
-                gltf::animation::Interpolation::Linear => Interpolation::Linear,
-                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
-            };
-            let c = Channel {
-                node: ch.target().node().index(),
-                property,
-                interpolation,
-                times,
-                values,
-            };
-            c.check().map_err(|e| invalid(path, &at, e))?;
-            channels.push(c);
-        }
-    }
-    let duration = channels.iter().map(Channel::end).fold(0.0, f32::max);
+    // The chosen animations' channels.
+    let (channels, weight_channels) = read_animations(path, doc, &buffers, &options.animation, &mut warn)?;
+    let duration = channels
+        .iter()
+        .map(Channel::end)
+        .chain(weight_channels.iter().map(WeightChannel::end))
+        .fold(0.0, f32::max);
+    // Nodes that move: animated, or under an animated node, wherever they
+    // sit (joints may lie outside the scene's own nodes).
+    let world_order = all_nodes_parents_first(&parents);
     let mut animated = vec![false; n];
     for c in &channels {
         animated[c.node] = true;
     }
-    for &i in &order {
+    for &i in &world_order {
         if let Some(p) = parents[i] {
             animated[i] |= animated[p];
         }
@@ -394,7 +404,45 @@ fn load_checked(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPl
 
     let mut ctx = Context::new();
     let materials = convert_materials(path, base, doc, &buffers, &mut ctx, &mut warn)?;
-    let objects = convert_meshes(path, doc, &buffers, &materials, &mut ctx, &mut warn)?;
+    let meshes = convert_meshes(path, doc, &buffers, &materials, &mut ctx, &mut warn)?;
+
+    // Morph weights at rest: the node's, else its mesh's, else zeros.
+    let rest_weights: Vec<Vec<f32>> = doc
+        .nodes()
+        .map(|node| {
+            let targets = node
+                .mesh()
+                .and_then(|m| meshes[m.index()].as_ref())
+                .map_or(0, |p| p.iter().map(|p| p.targets.len()).max().unwrap_or(0));
+            let mut w: Vec<f32> = node
+                .weights()
+                .or_else(|| node.mesh().and_then(|m| m.weights()))
+                .map(<[f32]>::to_vec)
+                .unwrap_or_default();
+            w.resize(targets, 0.0);
+            w
+        })
+        .collect();
+    if let Some((i, _)) = rest_weights
+        .iter()
+        .enumerate()
+        .find(|(_, w)| w.iter().any(|x| !x.is_finite()))
+    {
+        return Err(invalid(path, &format!("nodes[{i}]"), "a morph weight is not finite"));
+    }
+    for c in &weight_channels {
+        let targets = rest_weights[c.node].len();
+        if c.width != targets {
+            return Err(invalid(
+                path,
+                &format!("nodes[{}]", c.node),
+                format!(
+                    "an animation gives {} morph weights per key; the node's mesh has {targets} morph targets",
+                    c.width
+                ),
+            ));
+        }
+    }
 
     let mut player = GltfPlayer {
         ctx,
@@ -405,8 +453,12 @@ fn load_checked(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPl
         parents,
         rest,
         order,
+        world_order,
         moving: Vec::new(),
         channels,
+        weight_channels,
+        rest_weights,
+        deformers: Vec::new(),
         duration,
         camera: None,
         framing: Camera {
@@ -417,41 +469,99 @@ fn load_checked(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPl
             near: 0.01,
         },
         static_instances: 0,
+        deform_times: super::DeformTimes::default(),
+        animation_names: doc.animations().map(|a| a.name().unwrap_or("").to_string()).collect(),
     };
     let world = player.world(0.0);
+    let weights0 = player.weights(0.0);
     let core = |source| SceneError::Core {
         path: path.to_path_buf(),
         source,
     };
     let mut lights = Vec::new();
-    for &i in &player.order {
+    let mut shared: HashMap<usize, ObjectId> = HashMap::new();
+    let mut cameras_seen = Vec::new();
+    let mut deformed_triangles = 0usize;
+    for &i in &player.order.clone() {
         let node = doc.nodes().nth(i).expect("index in range");
-        if node.skin().is_some() {
-            warn.add(
-                &format!("nodes[{i}]"),
-                "skins are not played yet: the mesh is rendered in its bind pose",
-            );
-        }
-        if let Some(&obj) = node.mesh().and_then(|mesh| objects.get(&mesh.index())) {
-            {
+        let at = format!("nodes[{i}]");
+        if let Some((mesh, prims)) = node
+            .mesh()
+            .and_then(|m| meshes[m.index()].as_ref().map(|p| (m.index(), p)))
+        {
+            let skin = match node.skin() {
+                Some(skin) => Some(read_skin(path, &skin, &buffers, prims, &at)?),
+                None => None,
+            };
+            let morphs = !player.rest_weights[i].is_empty();
+            let weights_move = player.weight_channels.iter().any(|c| c.node == i);
+            let joints_move = skin.as_ref().is_some_and(|s| s.joints.iter().any(|&j| animated[j]));
+            let own = skin.is_some() || (morphs && (weights_move || player.rest_weights[i].iter().any(|&w| w != 0.0)));
+            let id = if own {
+                // This node's own object, deformed now and, when its joints
+                // or weights are animated, every frame.
+                deformed_triangles += prims.iter().map(super::deform::Prim::triangles).sum::<usize>();
+                if deformed_triangles > MAX_SCENE_TRIANGLES {
+                    return Err(invalid(
+                        path,
+                        &at,
+                        format!(
+                            "skinned and morphed copies make more than MAX_SCENE_TRIANGLES = {MAX_SCENE_TRIANGLES} triangles"
+                        ),
+                    ));
+                }
+                let object = player.ctx.gen_object();
+                let d = Deformer {
+                    node: i,
+                    object,
+                    prims: Arc::clone(prims),
+                    skin,
+                    animated: joints_move || weights_move,
+                };
+                let shapes = d.shapes(&world, &weights0[i]);
+                deform::define(&mut player.ctx, object, &d.prims, &shapes).map_err(|(a, e)| invalid(path, &a, e))?;
+                let skinned = d.skin.is_some();
+                player.deformers.push(d);
+                // A skinned mesh is placed by its joints alone: the node's
+                // own transform is ignored (glTF 2.0, 3.7.3.3).
                 player
                     .ctx
-                    .load_matrix(world[i])
-                    .map_err(|e| invalid(path, &format!("nodes[{i}]"), e))?;
-                let id = player.ctx.instantiate(obj).map_err(core)?;
-                if animated[i] {
-                    player.moving.push((i, id));
+                    .load_matrix(if skinned { Mat4::IDENTITY } else { world[i] })
+                    .map_err(|e| invalid(path, &at, e))?;
+                player.ctx.instantiate(object).map_err(core)?
+            } else {
+                let object = if let Some(&o) = shared.get(&mesh) {
+                    o
                 } else {
-                    player.static_instances += 1;
-                }
+                    let o = player.ctx.gen_object();
+                    let shapes: Vec<Shape> = prims.iter().map(Prim::rest).collect();
+                    deform::define(&mut player.ctx, o, prims, &shapes).map_err(|(a, e)| invalid(path, &a, e))?;
+                    shared.insert(mesh, o);
+                    o
+                };
+                player.ctx.load_matrix(world[i]).map_err(|e| invalid(path, &at, e))?;
+                player.ctx.instantiate(object).map_err(core)?
+            };
+            // Affine: an animated node's instance (a skinned mesh's stays
+            // put); deforming: an object redefined every frame; else static.
+            let deforming = player.deformers.last().is_some_and(|d| d.node == i && d.animated);
+            if animated[i] && node.skin().is_none() {
+                player.moving.push((i, id));
+            } else if !deforming {
+                player.static_instances += 1;
             }
+        } else if node.skin().is_some() {
+            warn.add(&at, "a skin without a mesh is ignored");
         }
         if let Some(cam) = node.camera() {
+            cameras_seen.push((cam.index(), i));
             match cam.projection() {
-                gltf::camera::Projection::Perspective(p) if player.camera.is_none() => {
-                    player.camera = Some((i, p.yfov(), p.znear().max(1e-4)));
+                gltf::camera::Projection::Perspective(p) => {
+                    let wanted = options.camera.map_or(player.camera.is_none(), |c| c == cam.index());
+                    if wanted && player.camera.is_none() {
+                        player.camera = Some((i, p.yfov(), p.znear().max(1e-4)));
+                    }
                 }
-                gltf::camera::Projection::Perspective(_) => {}
                 gltf::camera::Projection::Orthographic(_) => {
                     warn.add(
                         &format!("cameras[{}]", cam.index()),
@@ -464,7 +574,30 @@ fn load_checked(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<GltfPl
             lights.push(convert_light(&light, world[i], &mut warn));
         }
     }
+    if let Some(c) = options.camera
+        && player.camera.is_none()
+    {
+        return Err(invalid(
+            path,
+            "cameras",
+            format!(
+                "--camera {c}: the scene's nodes use the perspective cameras {:?} (of {} in the file)",
+                cameras_seen
+                    .iter()
+                    .filter(|(k, _)| doc
+                        .cameras()
+                        .nth(*k)
+                        .is_some_and(|c| matches!(c.projection(), gltf::camera::Projection::Perspective(_))))
+                    .map(|(k, _)| *k)
+                    .collect::<Vec<_>>(),
+                doc.cameras().len()
+            ),
+        ));
+    }
     player.ctx.load_identity();
+    player
+        .set_deforming_accel(Some(super::GLTF_DEFORMING_ACCEL))
+        .map_err(core)?;
     player.ctx.commit().map_err(core)?;
     // A camera framing the scene's bounds, for files without one.
     let scene_now = player.ctx.scene();
@@ -551,8 +684,9 @@ fn convert_light(
 
 /// glTF's metallic-roughness materials onto the Whitted model: the base
 /// colour (factor times texture) is the diffuse colour of the dielectric
-/// share; metals reflect their base colour, rougher surfaces less and with
-/// broader highlights; `doubleSided: false` makes one-sided surfaces.
+/// share that is not transmitted; metals reflect their base colour, rougher
+/// surfaces less and with broader highlights; the transmitted share
+/// refracts; `doubleSided: false` makes one-sided surfaces.
 fn convert_materials(
     path: &Path,
     base: Option<&Path>,
@@ -600,15 +734,34 @@ fn convert_materials(
         if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
             warn.add(&at, "alphaMode MASK and BLEND are rendered opaque");
         }
+        if Vec3::from_array(m.emissive_factor()) != Vec3::ZERO {
+            warn.add(&at, "emission (emissiveFactor) is not rendered");
+        }
+        // KHR_materials_transmission: the transmitted share refracts with
+        // KHR_materials_ior's index (1.5 when not given, as that extension says).
+        let transmission = m
+            .transmission()
+            .map_or(0.0, |t| t.transmission_factor())
+            .clamp(0.0, 1.0)
+            * (1.0 - metal);
+        let ior = m.ior().unwrap_or(1.5);
+        if !ior.is_finite() || ior < 1.0 {
+            return Err(invalid(
+                path,
+                &at,
+                format!("KHR_materials_ior: ior {ior} must be at least 1"),
+            ));
+        }
         let shine = (1.0 - rough) * (1.0 - rough);
         let material = Material {
             ambient: rgb,
-            diffuse: rgb * (1.0 - metal),
+            transmission,
+            ior,
+            diffuse: rgb * (1.0 - metal) * (1.0 - transmission),
             specular: Vec3::splat(0.04).lerp(rgb, metal) * shine,
             shininess: (2.0 / (rough * rough * rough * rough).max(1e-4) - 2.0).clamp(1.0, 10_000.0),
             texture,
             one_sided: !m.double_sided(),
-            ..Material::default()
         };
         out.push(ctx.create_material(material).map_err(|e| invalid(path, &at, e))?);
     }
@@ -657,8 +810,9 @@ fn convert_image(
     Ok(Texture::new(data.width as usize, data.height as usize, texels))
 }
 
-/// Every mesh as one object (its primitives' triangles, each with its
-/// material); meshes without triangles make no object.
+/// Every mesh's primitives as read (`None` for a mesh without triangles):
+/// vertices, whole-triangle indices, material, skin influences (normalized
+/// weights) and morph targets.
 fn convert_meshes(
     path: &Path,
     doc: &gltf::Document,
@@ -666,14 +820,14 @@ fn convert_meshes(
     materials: &[MaterialId],
     ctx: &mut Context,
     warn: &mut Warnings<'_>,
-) -> Result<HashMap<usize, ObjectId>, SceneError> {
+) -> Result<Vec<Option<Arc<Vec<Prim>>>>, SceneError> {
     let default_material = ctx
         .create_material(Material {
             diffuse: Vec3::splat(0.8),
             ..Material::default()
         })
         .map_err(|e| invalid(path, "materials", e))?;
-    let mut objects = HashMap::new();
+    let mut out = Vec::new();
     let mut total = 0usize;
     for mesh in doc.meshes() {
         let mut prims = Vec::new();
@@ -688,46 +842,69 @@ fn convert_meshes(
                     continue;
                 }
             };
-            if p.morph_targets().len() > 0 {
-                warn.add(&at, "morph targets are not played yet: the base shape is drawn");
-            }
             let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
             let positions: Vec<Vec3> = reader
                 .read_positions()
                 .ok_or_else(|| invalid(path, &at, "the primitive has no POSITION"))?
                 .map(Vec3::from_array)
                 .collect();
+            let count = positions.len();
             let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(Vec3::from_array).collect());
             let uvs: Option<Vec<Vec2>> = reader
                 .read_tex_coords(0)
                 .map(|t| t.into_f32().map(Vec2::from_array).collect());
-            let indices: Vec<u32> = match reader.read_indices() {
+            let mut indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
-                None => (0..positions.len() as u32).collect(),
+                None => (0..count as u32).collect(),
             };
-            if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+            if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
                 return Err(invalid(
                     path,
                     &at,
-                    format!("index {bad} is beyond the {} vertices", positions.len()),
+                    format!("index {bad} is beyond the {count} vertices"),
                 ));
             }
-            if normals.as_ref().is_some_and(|n| n.len() != positions.len())
-                || uvs.as_ref().is_some_and(|t| t.len() != positions.len())
-            {
+            if normals.as_ref().is_some_and(|n| n.len() != count) || uvs.as_ref().is_some_and(|t| t.len() != count) {
                 return Err(invalid(
                     path,
                     &at,
                     "NORMAL or TEXCOORD_0 has another count than POSITION",
                 ));
             }
-            total += indices.len() / 3;
-            if total > MAX_SCENE_TRIANGLES {
-                return Err(invalid(
-                    path,
-                    &at,
-                    format!("the scene has more than MAX_SCENE_TRIANGLES = {MAX_SCENE_TRIANGLES} triangles"),
-                ));
+            // Whole primitives only: a strip or fan of fewer than three
+            // vertices, or a list not a multiple of three, draws what it can.
+            let usable = match kind {
+                PrimitiveKind::Triangles => indices.len() / 3 * 3,
+                _ if indices.len() >= 3 => indices.len(),
+                _ => 0,
+            };
+            indices.truncate(usable);
+            if usable == 0 {
+                continue;
+            }
+            let influences = read_influences(path, &at, &p, &reader, count, warn)?;
+            let mut targets = Vec::new();
+            for (k, (dp, dn, _)) in reader.read_morph_targets().enumerate() {
+                let t = Target {
+                    positions: dp.map(|d| d.map(Vec3::from_array).collect()),
+                    normals: dn.map(|d| d.map(Vec3::from_array).collect()),
+                };
+                let lens = [t.positions.as_ref(), t.normals.as_ref()];
+                if lens.iter().flatten().any(|d: &&Vec<Vec3>| d.len() != count) {
+                    return Err(invalid(
+                        path,
+                        &format!("{at}.targets[{k}]"),
+                        format!("a morph target's displacements must number the {count} vertices"),
+                    ));
+                }
+                if lens.iter().flatten().any(|d| d.iter().any(|v| !v.is_finite())) {
+                    return Err(invalid(
+                        path,
+                        &format!("{at}.targets[{k}]"),
+                        "a morph target's displacement is not finite",
+                    ));
+                }
+                targets.push(t);
             }
             let material = p
                 .material()
@@ -735,61 +912,289 @@ fn convert_meshes(
                 .and_then(|i| materials.get(i))
                 .copied()
                 .unwrap_or(default_material);
-            prims.push((at, kind, positions, normals, uvs, indices, material));
+            let prim = Prim {
+                at,
+                kind,
+                positions,
+                normals,
+                uvs,
+                indices,
+                material,
+                influences,
+                targets,
+            };
+            total += prim.triangles();
+            if total > MAX_SCENE_TRIANGLES {
+                return Err(invalid(
+                    path,
+                    &prim.at,
+                    format!("the scene has more than MAX_SCENE_TRIANGLES = {MAX_SCENE_TRIANGLES} triangles"),
+                ));
+            }
+            prims.push(prim);
         }
-        if prims.is_empty() {
-            continue;
+        out.push((!prims.is_empty()).then(|| Arc::new(prims)));
+    }
+    Ok(out)
+}
+
+/// A primitive's JOINTS_0/WEIGHTS_0 and JOINTS_1/WEIGHTS_1, with each
+/// vertex's weights normalized (a sum off 1 by more than 1% is warned; a
+/// sum of zero, a negative or non-finite weight is refused).
+fn read_influences<'a, 's, F>(
+    path: &Path,
+    at: &str,
+    p: &gltf::Primitive<'_>,
+    reader: &gltf::mesh::Reader<'a, 's, F>,
+    count: usize,
+    warn: &mut Warnings<'_>,
+) -> Result<Option<Vec<Influences>>, SceneError>
+where
+    F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+{
+    let has = |sem| p.get(&sem).is_some();
+    if has(gltf::Semantic::Joints(2)) || has(gltf::Semantic::Weights(2)) {
+        warn.add(
+            at,
+            format!("JOINTS_2 and above are ignored: at most {GLTF_MAX_INFLUENCES} joints per vertex"),
+        );
+    }
+    let mut out: Option<Vec<Influences>> = None;
+    for set in 0..2u32 {
+        let (joints, weights) = (reader.read_joints(set), reader.read_weights(set));
+        let (joints, weights): (Vec<[u16; 4]>, Vec<[f32; 4]>) = match (joints, weights) {
+            (None, None) => continue,
+            (Some(j), Some(w)) => (j.into_u16().collect(), w.into_f32().collect()),
+            _ => {
+                return Err(invalid(
+                    path,
+                    at,
+                    format!("JOINTS_{set} and WEIGHTS_{set} must come together"),
+                ));
+            }
+        };
+        if joints.len() != count || weights.len() != count {
+            return Err(invalid(
+                path,
+                at,
+                format!("JOINTS_{set} and WEIGHTS_{set} must number the {count} vertices"),
+            ));
         }
-        let id = ctx.gen_object();
-        let mesh_at = format!("meshes[{}]", mesh.index());
-        ctx.define_object(id, |ctx| -> Result<(), DefineError> {
-            for (at, kind, positions, normals, uvs, indices, material) in &prims {
-                let api = |e| DefineError::At(invalid(path, at, e));
-                ctx.material(*material).map_err(api)?;
-                // Whole primitives only: a strip or fan of fewer than three
-                // vertices, or a list not a multiple of three, draws what it can.
-                let usable = match kind {
-                    PrimitiveKind::Triangles => indices.len() / 3 * 3,
-                    _ if indices.len() >= 3 => indices.len(),
-                    _ => 0,
-                };
-                if usable == 0 {
+        let inf = out.get_or_insert_with(|| vec![Influences::default(); count]);
+        let slot = 4 * set as usize;
+        for (v, (j, w)) in inf.iter_mut().zip(joints.iter().zip(&weights)) {
+            v.joints[slot..slot + 4].copy_from_slice(j);
+            v.weights[slot..slot + 4].copy_from_slice(w);
+        }
+    }
+    if let Some(inf) = out.as_mut() {
+        let mut off = false;
+        for (i, v) in inf.iter_mut().enumerate() {
+            if v.weights.iter().any(|w| !w.is_finite() || *w < 0.0) {
+                return Err(invalid(
+                    path,
+                    at,
+                    format!("vertex {i} has a negative or non-finite joint weight"),
+                ));
+            }
+            let sum: f32 = v.weights.iter().sum();
+            if sum <= 0.0 {
+                return Err(invalid(path, at, format!("vertex {i}'s joint weights sum to zero")));
+            }
+            off |= (sum - 1.0).abs() > 0.01;
+            for w in &mut v.weights {
+                *w /= sum;
+            }
+        }
+        if off {
+            warn.add(at, "joint weights that do not sum to 1 are normalized");
+        }
+    }
+    Ok(out)
+}
+
+/// A skin's joints and inverse bind matrices, checked against the
+/// influences of the mesh it deforms.
+fn read_skin(
+    path: &Path,
+    skin: &gltf::Skin<'_>,
+    buffers: &[gltf::buffer::Data],
+    prims: &[Prim],
+    node_at: &str,
+) -> Result<Skin, SceneError> {
+    let at = format!("skins[{}]", skin.index());
+    let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+    if joints.is_empty() {
+        return Err(invalid(path, &at, "a skin needs at least one joint"));
+    }
+    let inverse_bind: Vec<Mat4> = match skin
+        .reader(|b| buffers.get(b.index()).map(|d| &d.0[..]))
+        .read_inverse_bind_matrices()
+    {
+        Some(m) => m.map(|m| Mat4::from_cols_array_2d(&m)).collect(),
+        None => vec![Mat4::IDENTITY; joints.len()],
+    };
+    if inverse_bind.len() < joints.len() {
+        return Err(invalid(
+            path,
+            &at,
+            format!(
+                "{} inverse bind matrices for {} joints: one per joint is needed",
+                inverse_bind.len(),
+                joints.len()
+            ),
+        ));
+    }
+    if inverse_bind.iter().any(|m| !m.is_finite()) {
+        return Err(invalid(path, &at, "an inverse bind matrix is not finite"));
+    }
+    for p in prims {
+        let Some(inf) = &p.influences else {
+            return Err(invalid(
+                path,
+                &p.at,
+                format!("{node_at} is skinned by {at}, but this primitive has no JOINTS_0 and WEIGHTS_0"),
+            ));
+        };
+        let worst = inf
+            .iter()
+            .flat_map(|v| {
+                v.joints
+                    .iter()
+                    .zip(&v.weights)
+                    .filter(|(_, w)| **w != 0.0)
+                    .map(|(j, _)| *j)
+            })
+            .max();
+        if let Some(j) = worst.filter(|&j| usize::from(j) >= joints.len()) {
+            return Err(invalid(
+                path,
+                &p.at,
+                format!(
+                    "a vertex names joint {j}; {at} (skinning {node_at}) has {} joints",
+                    joints.len()
+                ),
+            ));
+        }
+    }
+    Ok(Skin { joints, inverse_bind })
+}
+
+/// Every node, parents before children (nodes on a cycle are left out).
+fn all_nodes_parents_first(parents: &[Option<usize>]) -> Vec<usize> {
+    let mut children = vec![Vec::new(); parents.len()];
+    for (i, p) in parents.iter().enumerate() {
+        if let Some(p) = p {
+            children[*p].push(i);
+        }
+    }
+    let mut out = Vec::with_capacity(parents.len());
+    let mut stack: Vec<usize> = (0..parents.len()).filter(|&i| parents[i].is_none()).collect();
+    while let Some(i) = stack.pop() {
+        out.push(i);
+        stack.extend(&children[i]);
+    }
+    out
+}
+
+/// The chosen animations' node and morph-weight channels, checked.
+fn read_animations(
+    path: &Path,
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    choice: &GltfAnimation,
+    warn: &mut Warnings<'_>,
+) -> Result<(Vec<Channel>, Vec<WeightChannel>), SceneError> {
+    let all: Vec<gltf::Animation<'_>> = doc.animations().collect();
+    let names = || {
+        all.iter()
+            .map(|a| format!("{} {:?}", a.index(), a.name().unwrap_or("")))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let chosen: Vec<&gltf::Animation<'_>> = match choice {
+        GltfAnimation::None => Vec::new(),
+        GltfAnimation::All => all.iter().collect(),
+        GltfAnimation::First => {
+            if all.len() > 1 {
+                warn.add(
+                    "animations",
+                    format!(
+                        "{} animations: the first is played (--animation NAME, INDEX or all chooses)",
+                        all.len()
+                    ),
+                );
+            }
+            all.iter().take(1).collect()
+        }
+        GltfAnimation::Index(k) => vec![all.get(*k).ok_or_else(|| {
+            invalid(
+                path,
+                "animations",
+                format!("--animation {k}: the file has {} animations ({})", all.len(), names()),
+            )
+        })?],
+        GltfAnimation::Name(name) => vec![all.iter().find(|a| a.name() == Some(name.as_str())).ok_or_else(|| {
+            invalid(
+                path,
+                "animations",
+                format!("--animation {name:?}: no animation has that name ({})", names()),
+            )
+        })?],
+    };
+    let (mut channels, mut weights) = (Vec::new(), Vec::new());
+    for anim in chosen {
+        for ch in anim.channels() {
+            let at = format!("animations[{}].samplers[{}]", anim.index(), ch.sampler().index());
+            let reader = ch.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+            let times: Vec<f32> = reader
+                .read_inputs()
+                .ok_or_else(|| invalid(path, &at, "the key times cannot be read"))?
+                .collect();
+            let interpolation = match ch.sampler().interpolation() {
+                gltf::animation::Interpolation::Step => Interpolation::Step,
+                gltf::animation::Interpolation::Linear => Interpolation::Linear,
+                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+            };
+            let node = ch.target().node().index();
+            let (property, values): (Property, Vec<Vec4>) = match reader.read_outputs() {
+                Some(ReadOutputs::Translations(v)) => (
+                    Property::Translation,
+                    v.map(|t| Vec3::from_array(t).extend(0.0)).collect(),
+                ),
+                Some(ReadOutputs::Rotations(v)) => (Property::Rotation, v.into_f32().map(Vec4::from_array).collect()),
+                Some(ReadOutputs::Scales(v)) => (Property::Scale, v.map(|s| Vec3::from_array(s).extend(0.0)).collect()),
+                Some(ReadOutputs::MorphTargetWeights(v)) => {
+                    let values: Vec<f32> = v.into_f32().collect();
+                    let per_key = times.len()
+                        * if interpolation == Interpolation::CubicSpline {
+                            3
+                        } else {
+                            1
+                        };
+                    let c = WeightChannel {
+                        node,
+                        interpolation,
+                        width: values.len().checked_div(per_key).unwrap_or(0),
+                        times,
+                        values,
+                    };
+                    c.check().map_err(|e| invalid(path, &at, e))?;
+                    weights.push(c);
                     continue;
                 }
-                ctx.begin(*kind).map_err(api)?;
-                for &i in &indices[..usable] {
-                    let i = i as usize;
-                    match normals {
-                        Some(n) => ctx.normal(n[i]).map_err(api)?,
-                        None => ctx.clear_normal().map_err(api)?,
-                    }
-                    if let Some(t) = uvs {
-                        ctx.tex_coord(t[i]).map_err(api)?;
-                    }
-                    ctx.vertex(positions[i]).map_err(api)?;
-                }
-                ctx.end().map_err(api)?;
-            }
-            Ok(())
-        })
-        .map_err(|e| match e {
-            DefineError::At(e) => e,
-            DefineError::Core(e) => invalid(path, &mesh_at, e),
-        })?;
-        objects.insert(mesh.index(), id);
+                None => return Err(invalid(path, &at, "the key values cannot be read")),
+            };
+            let c = Channel {
+                node,
+                property,
+                interpolation,
+                times,
+                values,
+            };
+            c.check().map_err(|e| invalid(path, &at, e))?;
+            channels.push(c);
+        }
     }
-    Ok(objects)
-}
-
-/// A failure while defining a mesh's object: one named by its primitive,
-/// or the API's own (`end_object`), named by the mesh.
-enum DefineError {
-    At(SceneError),
-    Core(openrt_core::CoreError),
-}
-
-impl From<openrt_core::CoreError> for DefineError {
-    fn from(e: openrt_core::CoreError) -> Self {
-        Self::Core(e)
-    }
+    Ok((channels, weights))
 }

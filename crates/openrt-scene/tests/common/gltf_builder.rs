@@ -51,6 +51,19 @@ impl Builder {
         self.accessors.len() - 1
     }
 
+    /// An accessor of `u16` values (`kind` VEC4 for JOINTS_0...).
+    pub fn shorts(&mut self, data: &[u16], kind: &str, comps: usize) -> usize {
+        self.pad();
+        let offset = self.bin.len();
+        for v in data {
+            self.bin.extend_from_slice(&v.to_le_bytes());
+        }
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 2}));
+        self.accessors.push(json!({"bufferView": self.views.len() - 1, "componentType": 5123, "count": data.len() / comps, "type": kind}));
+        self.accessors.len() - 1
+    }
+
     /// An accessor of `u16` indices.
     pub fn indices(&mut self, data: &[u16]) -> usize {
         self.pad();
