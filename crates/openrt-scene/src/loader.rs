@@ -328,14 +328,16 @@ fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
         || file.bart.is_some()
         || !file.generators.is_empty()
         || file.instances.iter().any(|i| i.keys.is_some())
-        || file
-            .objects
-            .values()
-            .any(|o| matches!(o, ObjectDesc::Morph { .. } | ObjectDesc::Obj { .. }));
+        || file.objects.values().any(|o| {
+            matches!(
+                o,
+                ObjectDesc::Morph { .. } | ObjectDesc::Obj { .. } | ObjectDesc::Gltf { .. }
+            )
+        });
     if file.version == 1 && v2_only {
         return Err(SceneError::Invalid {
             path: path.to_path_buf(),
-            what: "animation, camera keys, BART wrappers, generators, Morph and Obj need 'version: 2'".into(),
+            what: "animation, camera keys, BART wrappers, generators, Morph, Obj and Gltf need 'version: 2'".into(),
         });
     }
     Ok(file)
@@ -426,7 +428,7 @@ impl Builder {
                 ObjectDesc::Mesh { triangles, .. } | ObjectDesc::Morph { triangles, .. } => triangles.len(),
                 ObjectDesc::Box { .. } => 12,
                 ObjectDesc::Quad { .. } => 2,
-                ObjectDesc::Obj { .. } => 0,
+                ObjectDesc::Obj { .. } | ObjectDesc::Gltf { .. } => 0,
                 ObjectDesc::Sphere { segments, .. } => {
                     if *segments > MAX_SPHERE_SEGMENTS || *segments < 2 {
                         return Err(self.invalid(format!(
@@ -896,6 +898,18 @@ impl Builder {
                 }
                 ctx.end().map_err(&core)
             }
+            ObjectDesc::Gltf { path, material: m } => {
+                ctx.material(material(m, name)?).map_err(&core)?;
+                let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
+                let player = crate::GltfPlayer::load_with(
+                    &file,
+                    &crate::GltfOptions {
+                        animation: crate::GltfAnimation::None,
+                        ..crate::GltfOptions::default()
+                    },
+                )?;
+                emit_world_triangles(ctx, &player.ctx.scene()).map_err(&core)
+            }
             ObjectDesc::Box { min, max, material: m } => {
                 ctx.material(material(m, name)?).map_err(&core)?;
                 emit_box(ctx, v3(*min), v3(*max)).map_err(&core)
@@ -934,4 +948,37 @@ impl Builder {
             }
         }
     }
+}
+
+/// Every instance of `scene` in world space, into the open definition of
+/// `ctx`: triangles transformed, normals through each instance's normal
+/// matrix (those given, not the geometric ones), texture coordinates kept.
+fn emit_world_triangles(ctx: &mut Context, scene: &openrt_core::Scene) -> Result<(), openrt_core::CoreError> {
+    for r in scene.instances() {
+        let tris = r.geometry.tree.triangles();
+        let sh = &r.geometry.shading;
+        let mut positions = Vec::with_capacity(tris.len() * 3);
+        let mut normals = Vec::with_capacity(tris.len() * 3);
+        let mut uvs = Vec::with_capacity(tris.len() * 3);
+        for (i, t) in tris.iter().enumerate() {
+            for (k, &p) in t.iter().enumerate() {
+                positions.push(r.to_world.transform_point3(p));
+                let n = if sh.has_normals[i] {
+                    r.normal_matrix * sh.normals[i][k]
+                } else {
+                    Vec3::ZERO
+                };
+                normals.push(n);
+                uvs.push(sh.uvs[i][k]);
+            }
+        }
+        let indices: Vec<u32> = (0..positions.len() as u32).collect();
+        let arrays = openrt_core::VertexArrays {
+            positions: &positions,
+            normals: Some(&normals),
+            uvs: Some(&uvs),
+        };
+        ctx.draw_elements(PrimitiveKind::Triangles, &arrays, &indices)?;
+    }
+    Ok(())
 }

@@ -273,6 +273,18 @@ pub enum ObjectDesc {
         #[serde(default)]
         material: Option<String>,
     },
+    /// (v2) A glTF 2.0 file (`.gltf` or `.glb`, relative to the scene
+    /// file): every mesh of its default scene at time 0, skins and morph
+    /// targets applied, in the file's world space, as one object with one
+    /// material (the file's materials and animation are not used: instance
+    /// keys move it).
+    Gltf {
+        /// The file.
+        path: String,
+        /// Material name.
+        #[serde(default)]
+        material: Option<String>,
+    },
     /// A planar quad, texture coordinates (0,0), (1,0), (1,1), (0,1) times `uv_scale`.
     Quad {
         /// The four corners in order.

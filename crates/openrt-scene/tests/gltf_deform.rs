@@ -393,3 +393,77 @@ fn scenes_animations_and_cameras_are_chosen_by_index_or_name() {
         &["--camera 0", "[1]"],
     );
 }
+
+#[test]
+fn a_gltf_object_in_a_ron_scene_is_the_files_scene_at_rest_and_moves_with_its_instance() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    std::fs::copy(root.join("scenes/walker.glb"), dir.path().join("walker.glb")).unwrap();
+    let ron = dir.path().join("room.ron");
+    std::fs::write(
+        &ron,
+        r#"(version: 2, animation: Some((start: 0.0, end: 1.0, frames: 2)),
+            materials: {"green": (diffuse: (0.2, 0.7, 0.3))},
+            objects: {"figure": Gltf(path: "walker.glb", material: Some("green"))},
+            instances: [(object: "figure", keys: Some((translate: [(0.0, (0.0, 0.0, 0.0)), (1.0, (5.0, 0.0, 0.0))])))])"#,
+    )
+    .unwrap();
+    let mut scene = openrt_scene::load_ron(&ron).unwrap_or_else(|e| panic!("{e}"));
+    // The oracle: the glTF player's own world-space triangles at rest.
+    let at_rest = GltfPlayer::load_with(
+        &root.join("scenes/walker.glb"),
+        &GltfOptions {
+            animation: GltfAnimation::None,
+            ..GltfOptions::default()
+        },
+    )
+    .unwrap();
+    let mut want: Vec<[f32; 3]> = world_vertices(&at_rest).iter().map(Vec3::to_array).collect();
+    let collect = |s: &openrt_scene::LoadedScene| -> Vec<[f32; 3]> {
+        s.ctx
+            .scene()
+            .instances()
+            .iter()
+            .flat_map(|r| {
+                let m = r.to_world;
+                r.geometry
+                    .tree
+                    .triangles()
+                    .iter()
+                    .flat_map(move |t| t.map(|p| m.transform_point3(p).to_array()))
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    };
+    let sorted = |mut v: Vec<[f32; 3]>| {
+        v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        v
+    };
+    want.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let before = collect(&scene);
+    assert_eq!(
+        sorted(before.clone()),
+        want,
+        "the same triangles, in the file's world space"
+    );
+    scene.set_time(1.0).unwrap();
+    let moved = collect(&scene);
+    assert_eq!(moved.len(), before.len());
+    assert!(
+        moved
+            .iter()
+            .zip(&before)
+            .all(|(a, b)| (Vec3::from_array(*a) - Vec3::from_array(*b) - Vec3::X * 5.0).length() < 1e-5),
+        "the instance key moves the figure"
+    );
+    // A missing file names it.
+    std::fs::write(
+        &ron,
+        r#"(version: 2, objects: {"f": Gltf(path: "nowhere.glb")}, instances: [(object: "f")])"#,
+    )
+    .unwrap();
+    let e = openrt_scene::load_ron(&ron)
+        .err()
+        .expect("a missing glTF file is an error");
+    assert!(e.to_string().contains("nowhere.glb"), "{e}");
+}

@@ -163,7 +163,7 @@ pub(super) struct DeformRow {
     pub(super) accel: &'static str,
     /// Skinning the vertices on the pool.
     pub(super) skin_ms: f64,
-    /// Redefining the object through the API (vertex by vertex).
+    /// Redefining the object through the API (`Context::draw_elements`).
     pub(super) define_ms: f64,
     /// The object's build in the commit (a refit of the last frame's tree).
     pub(super) build_ms: f64,
