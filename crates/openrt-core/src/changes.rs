@@ -26,8 +26,8 @@ use crate::{Context, CoreError, Material, MaterialId, ObjectId, Texture, Texture
 /// A material as plain data.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MaterialData {
-    /// Ambient, diffuse and specular colours.
-    pub colors: [[f32; 3]; 3],
+    /// Ambient, diffuse, specular and emitted colours.
+    pub colors: [[f32; 3]; 4],
     /// Shininess, transmission, index of refraction.
     pub params: [f32; 3],
     /// Texture index.
@@ -325,7 +325,7 @@ impl Context {
                 self.materials
                     .iter()
                     .map(|m| MaterialData {
-                        colors: [v3(m.ambient), v3(m.diffuse), v3(m.specular)],
+                        colors: [v3(m.ambient), v3(m.diffuse), v3(m.specular), v3(m.emission)],
                         params: [m.shininess, m.transmission, m.ior],
                         texture: m.texture.map(|t| t.0),
                         one_sided: m.one_sided,
@@ -441,6 +441,7 @@ impl Context {
                     ambient: Vec3::from_array(m.colors[0]),
                     diffuse: Vec3::from_array(m.colors[1]),
                     specular: Vec3::from_array(m.colors[2]),
+                    emission: Vec3::from_array(m.colors[3]),
                     shininess: m.params[0],
                     transmission: m.params[1],
                     ior: m.params[2],

@@ -15,6 +15,9 @@ pub struct Material {
     pub specular: Vec3,
     /// Phong exponent.
     pub shininess: f32,
+    /// Light the surface gives off itself, added unlit and untextured
+    /// (glTF's `emissiveFactor`; zero for NFF/AFF materials).
+    pub emission: Vec3,
     /// Transmission weight (0 = opaque).
     pub transmission: f32,
     /// Index of refraction.
@@ -33,6 +36,7 @@ impl Default for Material {
             diffuse: Vec3::splat(0.8),
             specular: Vec3::ZERO,
             shininess: 0.0,
+            emission: Vec3::ZERO,
             transmission: 0.0,
             ior: 1.0,
             texture: None,
@@ -49,6 +53,7 @@ impl Material {
             && self.diffuse.is_finite()
             && self.specular.is_finite()
             && self.shininess.is_finite()
+            && self.emission.is_finite()
             && self.transmission.is_finite()
             && self.ior.is_finite()
     }

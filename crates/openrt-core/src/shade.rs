@@ -520,7 +520,8 @@ impl<T: Tracer> Shader<'_, T> {
         // scalar loop's bits); the sums stay in the lights' order, three
         // channels to a register (`Vec3A`: the same products and sums).
         let (kd, specular) = (Vec3A::from(kd), Vec3A::from(mat.specular));
-        let mut color = Vec3A::from(self.env.ambient * ka);
+        // Emission is added unlit (zero adds nothing: the same bits).
+        let mut color = Vec3A::from(self.env.ambient * ka + mat.emission);
         for (q, quad) in self.light_quads.iter().enumerate() {
             let terms = light_terms(quad, surf.point, nf, ns, view);
             // PERF: the four lights' highlight powers in one pass, no call

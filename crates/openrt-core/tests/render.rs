@@ -497,3 +497,74 @@ fn one_sided_back_faces_are_passed_through_and_front_faces_are_not() {
         }
     }
 }
+
+/// An emitting surface shows its emission unlit, in both modes and with
+/// every backend and packet width alike; a zero emission adds nothing.
+#[test]
+fn emission_is_added_unlit_and_the_same_on_every_path() {
+    let mut pixels = Vec::new();
+    for emission in [Vec3::new(0.5, 0.25, 0.0), Vec3::ZERO] {
+        let mut ctx = Context::new();
+        let m = ctx
+            .create_material(Material {
+                ambient: Vec3::ZERO,
+                diffuse: Vec3::splat(0.5),
+                emission,
+                ..Material::default()
+            })
+            .unwrap();
+        let q = object(
+            &mut ctx,
+            &quad(
+                Vec3::new(-1.0, -1.0, 0.0),
+                Vec3::new(1.0, -1.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(-1.0, 1.0, 0.0),
+            ),
+            m,
+        );
+        ctx.instantiate(q).unwrap();
+        ctx.commit().unwrap();
+        // A light behind the quad: its front is lit by nothing.
+        let env = Environment {
+            lights: vec![PointLight {
+                position: Vec3::new(0.0, 0.0, -5.0),
+                color: Vec3::ONE,
+            }],
+            ambient: Vec3::splat(0.1),
+            background: Vec3::ZERO,
+        };
+        let cam = Camera {
+            from: Vec3::new(0.0, 0.0, 3.0),
+            at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 30.0,
+            near: 0.01,
+        };
+        let mut images = Vec::new();
+        for mode in [RenderMode::GlLike, RenderMode::Whitted] {
+            for backend in [openrt_core::Backend::Kd, openrt_core::Backend::KdSingle] {
+                let mut r = Renderer::new(1).unwrap();
+                r.set_backend(backend);
+                let s = RenderSettings {
+                    width: 16,
+                    height: 16,
+                    mode,
+                    ..RenderSettings::default()
+                };
+                let (img, _) = r.render(&ctx.scene(), &env, &cam, &s).unwrap();
+                images.push(img.to_rgb8());
+                if backend == openrt_core::Backend::Kd {
+                    pixels.push(img.pixels[8 * 16 + 8]);
+                }
+            }
+        }
+        assert!(
+            images.windows(2).all(|w| w[0] == w[1]),
+            "every mode and backend: the same bytes"
+        );
+    }
+    let (lit, dark) = (pixels[0], pixels[2]);
+    assert!((lit - Vec3::new(0.5, 0.25, 0.0)).length() < 1e-6, "{lit}");
+    assert_eq!(dark, Vec3::ZERO);
+}

@@ -525,6 +525,7 @@ impl Builder {
                     diffuse: v3(m.diffuse),
                     specular: v3(m.specular),
                     shininess: m.shininess,
+                    emission: v3(m.emission),
                     transmission: m.transmission,
                     ior: m.ior,
                     texture,

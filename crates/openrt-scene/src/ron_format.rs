@@ -186,6 +186,8 @@ pub struct MaterialDesc {
     pub specular: [f32; 3],
     /// Phong exponent.
     pub shininess: f32,
+    /// Emitted colour, added unlit.
+    pub emission: [f32; 3],
     /// Transmission.
     pub transmission: f32,
     /// Index of refraction.
@@ -203,6 +205,7 @@ impl Default for MaterialDesc {
             diffuse: [0.8; 3],
             specular: [0.0; 3],
             shininess: 0.0,
+            emission: [0.0; 3],
             transmission: 0.0,
             ior: 1.0,
             texture: None,

@@ -382,7 +382,7 @@ fn broken_and_unsupported_files_are_typed_errors_naming_the_place() {
 }
 
 #[test]
-fn transmission_and_ior_refract_and_emission_is_warned() {
+fn transmission_and_ior_refract_and_emission_is_added() {
     let dir = tempfile::tempdir().unwrap();
     let mut b = Builder::default();
     let meshes = quad(&mut b);
@@ -413,9 +413,6 @@ fn transmission_and_ior_refract_and_emission_is_warned() {
         (glass.diffuse - Vec3::new(0.125, 0.125, 0.25)).length() < 1e-6,
         "{glass:?}"
     );
-    assert!(
-        p.warnings().iter().any(|w| w.to_string().contains("emissiveFactor")),
-        "{:?}",
-        p.warnings()
-    );
+    assert_eq!(glass.emission, Vec3::new(1.0, 0.5, 0.0));
+    assert!(p.warnings().is_empty(), "{:?}", p.warnings());
 }

@@ -734,8 +734,12 @@ fn convert_materials(
         if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
             warn.add(&at, "alphaMode MASK and BLEND are rendered opaque");
         }
-        if Vec3::from_array(m.emissive_factor()) != Vec3::ZERO {
-            warn.add(&at, "emission (emissiveFactor) is not rendered");
+        let emission = Vec3::from_array(m.emissive_factor());
+        if !emission.is_finite() {
+            return Err(invalid(path, &at, "emissiveFactor is not finite"));
+        }
+        if m.emissive_texture().is_some() {
+            warn.add(&at, "emissiveTexture is not read: the emissiveFactor is used alone");
         }
         // KHR_materials_transmission: the transmitted share refracts with
         // KHR_materials_ior's index (1.5 when not given, as that extension says).
@@ -762,6 +766,7 @@ fn convert_materials(
             shininess: (2.0 / (rough * rough * rough * rough).max(1e-4) - 2.0).clamp(1.0, 10_000.0),
             texture,
             one_sided: !m.double_sided(),
+            emission,
         };
         out.push(ctx.create_material(material).map_err(|e| invalid(path, &at, e))?);
     }
