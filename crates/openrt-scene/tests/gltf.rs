@@ -416,3 +416,36 @@ fn transmission_and_ior_refract_and_emission_is_added() {
     assert_eq!(glass.emission, Vec3::new(1.0, 0.5, 0.0));
     assert!(p.warnings().is_empty(), "{:?}", p.warnings());
 }
+
+#[test]
+fn base_colour_textures_are_read_and_clamping_samplers_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    image::RgbImage::from_fn(4, 2, |x, _| image::Rgb([x as u8 * 60, 200, 10]))
+        .save(dir.path().join("tex.png"))
+        .unwrap();
+    let mut b = Builder::default();
+    let pos = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3", 3);
+    let uv = b.floats(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0], "VEC2", 2);
+    let doc = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{"wrapS": 33071, "wrapT": 10497}],
+        "images": [{"uri": "tex.png"}],
+    });
+    let path = b.write_gltf(dir.path(), "textured", doc);
+    let p = player(&path);
+    let scene = p.ctx.scene();
+    assert!(
+        scene.materials().iter().any(|m| m.texture.is_some()),
+        "the base colour texture is read"
+    );
+    assert!(
+        p.warnings().iter().any(|w| w.to_string().contains("CLAMP_TO_EDGE")),
+        "{:?}",
+        p.warnings()
+    );
+}

@@ -41,6 +41,30 @@ fn shipped_scenes_match_their_golden_images() {
     }
 }
 
+/// The shipped glTF scene mid-animation (the tube skinned and bent, the
+/// crate turned) against its golden frame.
+#[test]
+fn the_shipped_gltf_scene_matches_its_golden_frame() {
+    let mut p = openrt_scene::ScenePlayer::open(Some(&repo().join("scenes/walker.glb"))).unwrap();
+    let t = p.time_of(12);
+    p.set_time(t).unwrap();
+    for (mode, tag) in [(RenderMode::GlLike, "gl"), (RenderMode::Whitted, "whitted")] {
+        let settings = RenderSettings {
+            width: 160,
+            height: 120,
+            mode,
+            max_depth: 3,
+            ..RenderSettings::default()
+        };
+        let img = Renderer::new(2)
+            .expect("a render pool")
+            .render(&p.ctx().scene(), &p.env(), &p.camera(t), &settings)
+            .unwrap()
+            .0;
+        common::check_golden(&format!("walker-f12-{tag}"), &img, 1.0, 0.005);
+    }
+}
+
 #[test]
 fn the_golden_check_catches_a_changed_image() {
     let mut img = render(&repo().join("scenes/room.ron"), RenderMode::GlLike);

@@ -718,6 +718,16 @@ fn convert_materials(
                         "a base colour texture on TEXCOORD_1 or above is read through TEXCOORD_0",
                     );
                 }
+                let sampler = info.texture().sampler();
+                if [sampler.wrap_s(), sampler.wrap_t()]
+                    .iter()
+                    .any(|w| *w != gltf::texture::WrappingMode::Repeat)
+                {
+                    warn.add(
+                        &at,
+                        "CLAMP_TO_EDGE and MIRRORED_REPEAT samplers are read as REPEAT (textures repeat here)",
+                    );
+                }
                 let image = info.texture().source();
                 if let Some(&t) = images.get(&image.index()) {
                     Some(t)
