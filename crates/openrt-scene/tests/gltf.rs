@@ -449,3 +449,41 @@ fn base_colour_textures_are_read_and_clamping_samplers_warned() {
         p.warnings()
     );
 }
+
+#[test]
+fn lights_on_animated_nodes_move_with_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Builder::default();
+    let meshes = quad(&mut b);
+    let input = b.floats(&[0.0, 1.0], "SCALAR", 1);
+    let output = b.floats(&[0.0, 0.0, 0.0, 4.0, 0.0, 0.0], "VEC3", 3);
+    let doc = json!({
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "point", "color": [1.0, 1.0, 1.0], "intensity": 1.0},
+            {"type": "point", "color": [0.5, 0.5, 0.5], "intensity": 1.0}
+        ]}},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 3]}],
+        "nodes": [
+            {"mesh": 0},
+            {"children": [2]},
+            {"translation": [0.0, 3.0, 1.0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"translation": [-1.0, 3.0, 1.0], "extensions": {"KHR_lights_punctual": {"light": 1}}}
+        ],
+        "meshes": meshes,
+        "materials": materials(),
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}],
+            "samplers": [{"input": input, "output": output}]}],
+    });
+    let path = b.write_gltf(dir.path(), "moving_light", doc);
+    let mut p = player(&path);
+    let at = |p: &GltfPlayer| p.env.lights.iter().map(|l| l.position).collect::<Vec<_>>();
+    assert_eq!(at(&p), vec![Vec3::new(0.0, 3.0, 1.0), Vec3::new(-1.0, 3.0, 1.0)]);
+    p.set_time(0.5).unwrap();
+    assert_eq!(
+        at(&p),
+        vec![Vec3::new(2.0, 3.0, 1.0), Vec3::new(-1.0, 3.0, 1.0)],
+        "the light under the animated node moves, the other stays"
+    );
+}

@@ -12,11 +12,11 @@ use gltf::json::animation::Property as P;
 use gltf::json::camera::Type as CamType;
 use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
 use gltf::json::validation::Checked;
-use openrt_core::{Camera, Context, Environment, Material, MaterialId, ObjectId, PointLight, PrimitiveKind, Texture};
+use openrt_core::{Camera, Context, Environment, Material, MaterialId, ObjectId, PrimitiveKind, Texture};
 
 use super::animation::{Channel, Interpolation, Property, Trs, WeightChannel};
 use super::deform::{self, Deformer, GLTF_MAX_INFLUENCES, Influences, Prim, Shape, Skin, Target};
-use super::{GLTF_SUPPORTED_REQUIRED, GltfAnimation, GltfOptions, GltfPlayer};
+use super::{GLTF_SUPPORTED_REQUIRED, GltfAnimation, GltfOptions, GltfPlayer, SceneLight};
 use crate::limits::{MAX_FILE_BYTES, MAX_SCENE_TRIANGLES, MAX_TEXTURE_SIDE, MAX_TEXTURE_TEXELS};
 use crate::{SceneError, SceneWarning};
 
@@ -471,6 +471,9 @@ fn load_checked(
         static_instances: 0,
         deform_times: super::DeformTimes::default(),
         animation_names: doc.animations().map(|a| a.name().unwrap_or("").to_string()).collect(),
+        lights: Vec::new(),
+        light_bounds: openrt_accel::Aabb::EMPTY,
+        node_animated: Vec::new(),
     };
     let world = player.world(0.0);
     let weights0 = player.weights(0.0);
@@ -571,7 +574,7 @@ fn load_checked(
             }
         }
         if let Some(light) = node.light() {
-            lights.push(convert_light(&light, world[i], &mut warn));
+            lights.extend(convert_light(&light, i, &mut warn));
         }
     }
     if let Some(c) = options.camera
@@ -615,33 +618,13 @@ fn load_checked(
             near: r * 1e-3,
         };
     }
-    let eye = player.camera(0.0).from;
-    let lights = if lights.iter().flatten().count() == 0 {
-        vec![PointLight {
-            position: eye,
-            color: Vec3::ONE,
-        }]
-    } else {
-        lights
-            .into_iter()
-            .flatten()
-            .map(|(p, c)| PointLight {
-                position: p(&bounds),
-                color: c,
-            })
-            .collect()
-    };
-    player.env = Arc::new(Environment {
-        lights,
-        ambient: Vec3::splat(0.1),
-        background: Vec3::splat(0.2),
-    });
+    player.lights = lights;
+    player.light_bounds = bounds;
+    player.node_animated = animated;
+    player.env = Arc::new(player.env_at(&world, 0.0));
     player.warnings = warn.list;
     Ok(player)
 }
-
-/// A light's position (given the scene's bounds, for directional lights) and colour.
-type LightAt = (Box<dyn Fn(&openrt_accel::Aabb) -> Vec3>, Vec3);
 
 /// KHR_lights_punctual onto point lights: a point light at its node; a spot
 /// light as a point light (warned); a directional light as a point light
@@ -649,35 +632,34 @@ type LightAt = (Box<dyn Fn(&openrt_accel::Aabb) -> Vec3>, Vec3);
 /// the Whitted lights are unitless.
 fn convert_light(
     light: &gltf::khr_lights_punctual::Light<'_>,
-    world: Mat4,
+    node: usize,
     warn: &mut Warnings<'_>,
-) -> Option<LightAt> {
+) -> Option<SceneLight> {
     let color = Vec3::from_array(light.color());
     if light.intensity() <= 0.0 || !color.is_finite() {
         return None;
     }
     let at = format!("KHR_lights_punctual.lights[{}]", light.index());
-    let pos = world.transform_point3(Vec3::ZERO);
+    let point = SceneLight {
+        node,
+        directional: false,
+        color,
+    };
     match light.kind() {
-        gltf::khr_lights_punctual::Kind::Point => Some((Box::new(move |_| pos), color)),
+        gltf::khr_lights_punctual::Kind::Point => Some(point),
         gltf::khr_lights_punctual::Kind::Spot { .. } => {
             warn.add(&at, "a spot light is lit as a point light (no cone)");
-            Some((Box::new(move |_| pos), color))
+            Some(point)
         }
         gltf::khr_lights_punctual::Kind::Directional => {
             warn.add(
                 &at,
                 "a directional light is lit as a point light far along its direction",
             );
-            let dir = world.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y);
-            Some((
-                Box::new(move |b: &openrt_accel::Aabb| {
-                    let r = if b.is_empty() { 100.0 } else { (b.max - b.min).length() };
-                    let c = if b.is_empty() { Vec3::ZERO } else { b.center() };
-                    c - dir * 100.0 * r
-                }),
-                color,
-            ))
+            Some(SceneLight {
+                directional: true,
+                ..point
+            })
         }
     }
 }

@@ -22,7 +22,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
-use openrt_core::{Accel, Camera, CommitStats, Context, CoreError, Environment, InstanceId, RenderSettings};
+use openrt_core::{
+    Accel, Camera, CommitStats, Context, CoreError, Environment, InstanceId, PointLight, RenderSettings,
+};
 
 use crate::{SceneError, SceneWarning};
 use animation::{Channel, Trs, WeightChannel};
@@ -81,6 +83,21 @@ pub struct GltfPlayer {
     deform_times: DeformTimes,
     /// The file's animations by index: their names (empty when unnamed).
     animation_names: Vec<String>,
+    /// Punctual lights at their nodes; the scene's bounds at time 0 place
+    /// directional ones.
+    lights: Vec<SceneLight>,
+    light_bounds: openrt_accel::Aabb,
+    /// Per node: moved by the animation (itself or an ancestor).
+    node_animated: Vec<bool>,
+}
+
+/// A KHR_lights_punctual light as a point light at its node (a
+/// directional one far back along its node's -z axis).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SceneLight {
+    pub node: usize,
+    pub directional: bool,
+    pub color: Vec3,
 }
 
 /// What deforming meshes cost in one [`GltfPlayer::set_time`], before its commit.
@@ -214,8 +231,57 @@ impl GltfPlayer {
         world
     }
 
+    /// Lights where their nodes are in `world` (the default light, when the
+    /// file has none, at the camera at `time`).
+    fn env_at(&self, world: &[Mat4], time: f32) -> Environment {
+        let b = self.light_bounds;
+        let lights = if self.lights.is_empty() {
+            vec![PointLight {
+                position: self.camera(time).from,
+                color: Vec3::ONE,
+            }]
+        } else {
+            self.lights
+                .iter()
+                .map(|l| {
+                    let m = world[l.node];
+                    let position = if l.directional {
+                        let dir = m.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y);
+                        let r = if b.is_empty() { 100.0 } else { (b.max - b.min).length() };
+                        let c = if b.is_empty() { Vec3::ZERO } else { b.center() };
+                        c - dir * 100.0 * r
+                    } else {
+                        m.transform_point3(Vec3::ZERO)
+                    };
+                    PointLight {
+                        position,
+                        color: l.color,
+                    }
+                })
+                .collect()
+        };
+        Environment {
+            lights,
+            ambient: Vec3::splat(0.1),
+            background: Vec3::splat(0.2),
+        }
+    }
+
+    /// Whether a light sits on an animated node (or, without lights, the
+    /// default light on an animated camera's).
+    fn lights_move(&self) -> bool {
+        let moves = |n: usize| self.node_animated.get(n).copied().unwrap_or(false);
+        if self.lights.is_empty() {
+            self.camera.is_some_and(|(n, _, _)| moves(n))
+        } else {
+            self.lights.iter().any(|l| moves(l.node))
+        }
+    }
+
     /// Moves the animated instances to `time`, deforms the skinned and
     /// morphed meshes (in parallel on the context's pool) and commits.
+    /// Lights on animated nodes move with them (the default light follows
+    /// an animated camera).
     pub fn set_time(&mut self, time: f32) -> Result<CommitStats, SceneError> {
         let world = self.world(time);
         let core = |source| SceneError::Core {
@@ -224,6 +290,9 @@ impl GltfPlayer {
         };
         for &(node, id) in &self.moving {
             self.ctx.set_instance_transform(id, world[node]).map_err(core)?;
+        }
+        if self.lights_move() {
+            self.env = Arc::new(self.env_at(&world, time));
         }
         self.deform_times = DeformTimes::default();
         if self.deformers.iter().any(|d| d.animated) {
