@@ -102,7 +102,7 @@ impl LoadedScene {
             static_instances: scene
                 .instances()
                 .iter()
-                .filter(|r| !moving.contains(&r.id) && !morphing(r.object))
+                .filter(|r| moving.binary_search(&r.id).is_err() && !morphing(r.object))
                 .count(),
             affine_instances: moving.len(),
             deforming_objects: self.morphs.len(),

@@ -17,7 +17,11 @@ use gltf_builder::Builder;
 
 /// Every world-space triangle vertex of the scene.
 fn world_vertices(p: &GltfPlayer) -> Vec<Vec3> {
-    let scene = p.ctx.scene();
+    scene_vertices(&p.ctx.scene())
+}
+
+/// Every world-space triangle vertex of `scene`, instance by instance.
+fn scene_vertices(scene: &openrt_core::Scene) -> Vec<Vec3> {
     scene
         .instances()
         .iter()
@@ -420,20 +424,7 @@ fn a_gltf_object_in_a_ron_scene_is_the_files_scene_at_rest_and_moves_with_its_in
     .unwrap();
     let mut want: Vec<[f32; 3]> = world_vertices(&at_rest).iter().map(Vec3::to_array).collect();
     let collect = |s: &openrt_scene::LoadedScene| -> Vec<[f32; 3]> {
-        s.ctx
-            .scene()
-            .instances()
-            .iter()
-            .flat_map(|r| {
-                let m = r.to_world;
-                r.geometry
-                    .tree
-                    .triangles()
-                    .iter()
-                    .flat_map(move |t| t.map(|p| m.transform_point3(p).to_array()))
-                    .collect::<Vec<_>>()
-            })
-            .collect()
+        scene_vertices(&s.ctx.scene()).iter().map(Vec3::to_array).collect()
     };
     let sorted = |mut v: Vec<[f32; 3]>| {
         v.sort_by(|a, b| a.partial_cmp(b).unwrap());

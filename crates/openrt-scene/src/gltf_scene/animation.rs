@@ -12,6 +12,68 @@ pub(crate) enum Interpolation {
     CubicSpline,
 }
 
+impl Interpolation {
+    /// Output values per key: three for cubic splines (in-tangent, value,
+    /// out-tangent), else one.
+    fn values_per_key(self) -> usize {
+        if self == Self::CubicSpline { 3 } else { 1 }
+    }
+}
+
+/// Key times: at least one, finite, strictly increasing.
+fn check_times(times: &[f32]) -> Result<(), String> {
+    if times.is_empty() {
+        return Err("a sampler has no keys".into());
+    }
+    if let Some(t) = times.iter().find(|t| !t.is_finite()) {
+        return Err(format!("key time {t} is not finite"));
+    }
+    if let Some((a, b)) = times.windows(2).map(|w| (w[0], w[1])).find(|(a, b)| b <= a) {
+        return Err(format!("key times must increase: {a} is followed by {b}"));
+    }
+    Ok(())
+}
+
+/// `per_key` output values for each of `keys` keys (`what` names them in
+/// the message), all finite.
+fn check_values(keys: usize, per_key: usize, len: usize, what: &str, finite: bool) -> Result<(), String> {
+    if len != keys * per_key {
+        return Err(format!(
+            "{keys} keys{what} need {} output values, the sampler has {len}",
+            keys * per_key
+        ));
+    }
+    if !finite {
+        return Err("an output value is not finite".into());
+    }
+    Ok(())
+}
+
+/// Where a time falls among checked key times.
+enum Span {
+    /// Before the first key, after the last, or a single key: that key.
+    Key(usize),
+    /// `times[k] <= t < times[k + 1]`, at fraction `s` of the interval `dt`.
+    Between { k: usize, s: f32, dt: f32 },
+}
+
+fn span(times: &[f32], t: f32) -> Span {
+    let n = times.len();
+    if n == 1 || t <= times[0] {
+        return Span::Key(0);
+    }
+    if t >= times[n - 1] {
+        return Span::Key(n - 1);
+    }
+    let k = times.partition_point(|&x| x <= t) - 1;
+    let dt = times[k + 1] - times[k];
+    Span::Between {
+        k,
+        s: (t - times[k]) / dt,
+        dt,
+    }
+}
+
 /// The node property a channel animates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Property {
@@ -37,32 +99,14 @@ impl Channel {
     /// finite values, one value per key (three for cubic splines). The
     /// error states the rule broken.
     pub fn check(&self) -> Result<(), String> {
-        if self.times.is_empty() {
-            return Err("a sampler has no keys".into());
-        }
-        if let Some(t) = self.times.iter().find(|t| !t.is_finite()) {
-            return Err(format!("key time {t} is not finite"));
-        }
-        if let Some((a, b)) = self.times.windows(2).map(|w| (w[0], w[1])).find(|(a, b)| b <= a) {
-            return Err(format!("key times must increase: {a} is followed by {b}"));
-        }
-        let per_key = if self.interpolation == Interpolation::CubicSpline {
-            3
-        } else {
-            1
-        };
-        if self.values.len() != self.times.len() * per_key {
-            return Err(format!(
-                "{} keys need {} output values, the sampler has {}",
-                self.times.len(),
-                self.times.len() * per_key,
-                self.values.len()
-            ));
-        }
-        if self.values.iter().any(|v| !v.is_finite()) {
-            return Err("an output value is not finite".into());
-        }
-        Ok(())
+        check_times(&self.times)?;
+        check_values(
+            self.times.len(),
+            self.interpolation.values_per_key(),
+            self.values.len(),
+            "",
+            self.values.iter().all(|v| v.is_finite()),
+        )
     }
 
     /// The last key's time.
@@ -72,22 +116,14 @@ impl Channel {
 
     /// The value at `t` (clamped to the keys' range).
     pub fn sample(&self, t: f32) -> Vec4 {
-        let n = self.times.len();
         let value = |k: usize| match self.interpolation {
             Interpolation::CubicSpline => self.values[3 * k + 1],
             _ => self.values[k],
         };
-        if n == 1 || t <= self.times[0] {
-            return self.finish(value(0));
-        }
-        if t >= self.times[n - 1] {
-            return self.finish(value(n - 1));
-        }
-        // The key interval holding t: times[k] <= t < times[k + 1].
-        let k = self.times.partition_point(|&x| x <= t) - 1;
-        let (t0, t1) = (self.times[k], self.times[k + 1]);
-        let dt = t1 - t0;
-        let s = (t - t0) / dt;
+        let (k, s, dt) = match span(&self.times, t) {
+            Span::Key(k) => return self.finish(value(k)),
+            Span::Between { k, s, dt } => (k, s, dt),
+        };
         let v = match self.interpolation {
             Interpolation::Step => value(k),
             Interpolation::Linear => {
@@ -139,38 +175,17 @@ pub(crate) struct WeightChannel {
 impl WeightChannel {
     /// Checks the keys as [`Channel::check`] does, with `width` values per key.
     pub fn check(&self) -> Result<(), String> {
-        let per_key = self.width
-            * if self.interpolation == Interpolation::CubicSpline {
-                3
-            } else {
-                1
-            };
-        // The key times' rules are the node channels'; the values are
-        // checked here, per weight.
-        let times = Channel {
-            node: self.node,
-            property: Property::Scale,
-            interpolation: Interpolation::Step,
-            times: self.times.clone(),
-            values: vec![glam::Vec4::ZERO; self.times.len()],
-        };
-        times.check()?;
+        check_times(&self.times)?;
         if self.width == 0 {
             return Err("morph weights animate a mesh without morph targets".into());
         }
-        if self.values.len() != self.times.len() * per_key {
-            return Err(format!(
-                "{} keys of {} morph weights need {} output values, the sampler has {}",
-                self.times.len(),
-                self.width,
-                self.times.len() * per_key,
-                self.values.len()
-            ));
-        }
-        if self.values.iter().any(|v| !v.is_finite()) {
-            return Err("an output value is not finite".into());
-        }
-        Ok(())
+        check_values(
+            self.times.len(),
+            self.width * self.interpolation.values_per_key(),
+            self.values.len(),
+            &format!(" of {} morph weights", self.width),
+            self.values.iter().all(|v| v.is_finite()),
+        )
     }
 
     /// The last key's time.
@@ -180,7 +195,7 @@ impl WeightChannel {
 
     /// The weights at `t` (clamped to the keys' range).
     pub fn sample(&self, t: f32) -> Vec<f32> {
-        let (n, w) = (self.times.len(), self.width);
+        let w = self.width;
         let cubic = self.interpolation == Interpolation::CubicSpline;
         // Key k's values, in-tangents and out-tangents.
         let part = |k: usize, which: usize| {
@@ -188,16 +203,10 @@ impl WeightChannel {
             &self.values[start..start + w]
         };
         let value = |k: usize| part(k, 1).to_vec();
-        if n == 1 || t <= self.times[0] {
-            return value(0);
-        }
-        if t >= self.times[n - 1] {
-            return value(n - 1);
-        }
-        let k = self.times.partition_point(|&x| x <= t) - 1;
-        let (t0, t1) = (self.times[k], self.times[k + 1]);
-        let dt = t1 - t0;
-        let s = (t - t0) / dt;
+        let (k, s, dt) = match span(&self.times, t) {
+            Span::Key(k) => return value(k),
+            Span::Between { k, s, dt } => (k, s, dt),
+        };
         match self.interpolation {
             Interpolation::Step => value(k),
             Interpolation::Linear => value(k)

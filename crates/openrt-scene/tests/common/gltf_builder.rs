@@ -66,17 +66,7 @@ impl Builder {
 
     /// An accessor of `u16` indices.
     pub fn indices(&mut self, data: &[u16]) -> usize {
-        self.pad();
-        let offset = self.bin.len();
-        for v in data {
-            self.bin.extend_from_slice(&v.to_le_bytes());
-        }
-        self.views
-            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 2}));
-        self.accessors.push(
-            json!({"bufferView": self.views.len() - 1, "componentType": 5123, "count": data.len(), "type": "SCALAR"}),
-        );
-        self.accessors.len() - 1
+        self.shorts(data, "SCALAR", 1)
     }
 
     /// The document: `doc` gets the buffers, views and accessors.
