@@ -19,7 +19,7 @@ use clap::Parser;
 #[derive(Parser)]
 #[command(name = "openrt-viewer", version, about = "Interactive ray tracing of dynamic scenes")]
 struct Cli {
-    /// Scene file (.ron or .aff); the built-in default scene when omitted.
+    /// Scene file (.ron, .aff, .gltf or .glb); the built-in default scene when omitted.
     scene: Option<PathBuf>,
     /// Render threads (default: all cores).
     #[arg(long)]

@@ -163,7 +163,7 @@ struct Quality {
 enum Command {
     /// Renders one frame of a scene to a PNG file.
     Render {
-        /// Scene file (.ron or .aff); the built-in default scene when omitted.
+        /// Scene file (.ron, .aff, .gltf or .glb); the built-in default scene when omitted.
         scene: Option<PathBuf>,
         /// Output PNG.
         #[arg(short, long, default_value = "out.png")]
@@ -218,7 +218,7 @@ enum Command {
     },
     /// Plays a scene in a loop for many frames, sampling resident memory and frame time.
     Soak {
-        /// Scene file (.ron or .aff).
+        /// Scene file (.ron, .aff, .gltf or .glb).
         scene: PathBuf,
         /// Frames in all (the animation loops).
         #[arg(long, default_value_t = 10_000)]
@@ -237,7 +237,7 @@ enum Command {
     },
     /// Plays an animation headless, writing frames and per-frame statistics.
     Play {
-        /// Scene file (.ron or .aff).
+        /// Scene file (.ron, .aff, .gltf or .glb).
         scene: PathBuf,
         /// Frames to play, `A..B` (B exclusive) or `A..=B`; default all.
         #[arg(long)]

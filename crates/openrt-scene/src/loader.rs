@@ -42,6 +42,44 @@ pub struct LoadedScene {
     tracked: Vec<(InstanceId, Mat4, Track)>,
     sway: Vec<(InstanceId, Mat4, f32, f32)>,
     morphs: Vec<Morph>,
+    gltfs: Vec<GltfObject>,
+    warnings: Vec<crate::SceneWarning>,
+}
+
+/// A `Gltf` object whose file plays an animation: posed by its own
+/// [`GltfPlayer`](crate::GltfPlayer) on the scene's pool and redefined
+/// every frame from the posed world-space triangles (unstructured motion).
+struct GltfObject {
+    id: ObjectId,
+    material: MaterialId,
+    player: Box<crate::GltfPlayer>,
+    /// Triangles the last pose gave.
+    triangles: usize,
+}
+
+impl GltfObject {
+    /// Poses the file at `time` (looping over its animation) and redefines
+    /// the object.
+    fn define(&mut self, ctx: &mut Context, time: f32) -> Result<(), SceneError> {
+        let path = self.player.path().to_path_buf();
+        let core = |source| SceneError::Core {
+            path: path.clone(),
+            source,
+        };
+        let pool = ctx.pool().map_err(core)?;
+        if !self.player.ctx.pool().map_err(core)?.same(&pool) {
+            self.player.ctx.set_pool(&pool);
+        }
+        self.player.set_time(time)?;
+        let posed = self.player.ctx.scene();
+        self.triangles = posed.instanced_triangles();
+        ctx.define_object(self.id, |ctx| {
+            ctx.material(self.material)?;
+            emit_world_triangles(ctx, &posed)
+        })
+        .map_err(core)?;
+        Ok(())
+    }
 }
 
 /// An object with vertex keyframes (unstructured motion).
@@ -84,12 +122,19 @@ impl Morph {
 }
 
 impl LoadedScene {
+    /// What the load accepted leniently: the warnings of the glTF files
+    /// its `Gltf` objects read (the RON file itself is read strictly).
+    #[must_use]
+    pub fn warnings(&self) -> &[crate::SceneWarning] {
+        &self.warnings
+    }
+
     /// Instances and objects by motion class: tracked and swaying
     /// instances move affinely, objects with vertex keys deform.
     #[must_use]
     pub fn motion_classes(&self) -> crate::MotionClasses {
         let scene = self.ctx.scene();
-        let morphing = |o| self.morphs.iter().any(|m| m.id == o);
+        let morphing = |o| self.morphs.iter().any(|m| m.id == o) || self.gltfs.iter().any(|g| g.id == o);
         let mut moving: Vec<InstanceId> = self
             .tracked
             .iter()
@@ -105,8 +150,9 @@ impl LoadedScene {
                 .filter(|r| moving.binary_search(&r.id).is_err() && !morphing(r.object))
                 .count(),
             affine_instances: moving.len(),
-            deforming_objects: self.morphs.len(),
-            deforming_triangles: self.morphs.iter().map(|m| m.triangles.len()).sum(),
+            deforming_objects: self.morphs.len() + self.gltfs.len(),
+            deforming_triangles: self.morphs.iter().map(|m| m.triangles.len()).sum::<usize>()
+                + self.gltfs.iter().map(|g| g.triangles).sum::<usize>(),
         }
     }
 
@@ -130,6 +176,9 @@ impl LoadedScene {
         }
         for m in &self.morphs {
             m.define(&mut self.ctx, time).map_err(core)?;
+        }
+        for g in &mut self.gltfs {
+            g.define(&mut self.ctx, time)?;
         }
         self.ctx.commit().map_err(core)
     }
@@ -547,6 +596,9 @@ impl Builder {
         };
         let mut objects = BTreeMap::new();
         let mut morphs = Vec::new();
+        let mut gltfs = Vec::new();
+        let mut warnings = Vec::new();
+        let start = f.animation.map_or(0.0, |a| a.start);
         for (name, o) in &f.objects {
             let id = ctx.gen_object();
             if let ObjectDesc::Morph {
@@ -556,10 +608,35 @@ impl Builder {
             } = o
             {
                 let morph = self.morph(id, name, triangles, keys, material(m, name)?)?;
-                morph
-                    .define(&mut ctx, f.animation.map_or(0.0, |a| a.start))
-                    .map_err(self.core())?;
+                morph.define(&mut ctx, start).map_err(self.core())?;
                 morphs.push(morph);
+            } else if let ObjectDesc::Gltf {
+                path,
+                material: m,
+                scene,
+                animation,
+            } = o
+            {
+                let options = crate::GltfOptions {
+                    scene: *scene,
+                    animation: animation.as_deref().map_or(crate::GltfAnimation::First, |a| {
+                        a.parse().unwrap_or(crate::GltfAnimation::First)
+                    }),
+                    camera: None,
+                };
+                let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
+                let mut g = GltfObject {
+                    id,
+                    material: material(m, name)?,
+                    player: Box::new(crate::GltfPlayer::load_with(&file, &options)?),
+                    triangles: 0,
+                };
+                g.define(&mut ctx, start)?;
+                warnings.extend_from_slice(g.player.warnings());
+                // A file with nothing to play is defined once (a static object).
+                if g.player.frames() > 1 {
+                    gltfs.push(g);
+                }
             } else {
                 ctx.begin_object(id).map_err(self.core())?;
                 if let Err(e) = self.emit(&mut ctx, name, o, &material) {
@@ -662,10 +739,14 @@ impl Builder {
             tracked,
             sway,
             morphs: Vec::new(),
+            gltfs: Vec::new(),
+            warnings,
         };
-        // Morphs were defined at the start time already; set_time redefines them per frame.
-        scene.set_time(animation.map_or(0.0, |a| a.start))?;
+        // Morphs and glTF objects were defined at the start time already;
+        // set_time redefines them per frame.
+        scene.set_time(start)?;
         scene.morphs = morphs;
+        scene.gltfs = gltfs;
         Ok(scene)
     }
 
@@ -854,6 +935,9 @@ impl Builder {
                 ctx.end().map_err(&core)
             }
             ObjectDesc::Morph { .. } => Err(self.invalid(format!("object '{name}': Morph is defined per frame"))),
+            ObjectDesc::Gltf { .. } => {
+                Err(self.invalid(format!("object '{name}': Gltf is posed by its file's player")))
+            }
             ObjectDesc::Obj { path, material: m } => {
                 ctx.material(material(m, name)?).map_err(&core)?;
                 let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
@@ -898,18 +982,6 @@ impl Builder {
                     }
                 }
                 ctx.end().map_err(&core)
-            }
-            ObjectDesc::Gltf { path, material: m } => {
-                ctx.material(material(m, name)?).map_err(&core)?;
-                let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
-                let player = crate::GltfPlayer::load_with(
-                    &file,
-                    &crate::GltfOptions {
-                        animation: crate::GltfAnimation::None,
-                        ..crate::GltfOptions::default()
-                    },
-                )?;
-                emit_world_triangles(ctx, &player.ctx.scene()).map_err(&core)
             }
             ObjectDesc::Box { min, max, material: m } => {
                 ctx.material(material(m, name)?).map_err(&core)?;

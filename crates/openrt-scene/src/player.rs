@@ -85,12 +85,12 @@ impl ScenePlayer {
         }
     }
 
-    /// What the load accepted leniently, with file and line (empty for RON
-    /// scenes, which are read strictly).
+    /// What the load accepted leniently, with file and line (for RON
+    /// scenes, which are read strictly, those of the glTF files they use).
     #[must_use]
     pub fn warnings(&self) -> &[SceneWarning] {
         match self {
-            Self::Ron(_) => &[],
+            Self::Ron(s) => s.warnings(),
             Self::Aff(a) => &a.scene().warnings,
             Self::Gltf(g) => g.warnings(),
         }

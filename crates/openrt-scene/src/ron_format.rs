@@ -277,16 +277,25 @@ pub enum ObjectDesc {
         material: Option<String>,
     },
     /// (v2) A glTF 2.0 file (`.gltf` or `.glb`, relative to the scene
-    /// file): every mesh of its default scene at time 0, skins and morph
-    /// targets applied, in the file's world space, as one object with one
-    /// material (the file's materials and animation are not used: instance
-    /// keys move it).
+    /// file): every mesh of one of its scenes, in the file's world space,
+    /// as one object with one material (the file's materials are not
+    /// used). With an animation the file's nodes, skins and morph weights
+    /// play at the scene's time and the object is redefined every frame
+    /// (unstructured motion); without one it is the scene at rest, defined
+    /// once. Instance keys move it as a whole.
     Gltf {
         /// The file.
         path: String,
         /// Material name.
         #[serde(default)]
         material: Option<String>,
+        /// `scenes[N]` of the file (default: its default scene, else its first).
+        #[serde(default)]
+        scene: Option<usize>,
+        /// The animation played: an index, a name, `"all"` or `"none"` (at
+        /// rest); default: the file's first.
+        #[serde(default)]
+        animation: Option<String>,
     },
     /// A planar quad, texture coordinates (0,0), (1,0), (1,1), (0,1) times `uv_scale`.
     Quad {

@@ -399,54 +399,91 @@ fn scenes_animations_and_cameras_are_chosen_by_index_or_name() {
 }
 
 #[test]
-fn a_gltf_object_in_a_ron_scene_is_the_files_scene_at_rest_and_moves_with_its_instance() {
+fn a_gltf_object_in_a_ron_scene_plays_its_file_and_moves_with_its_instance() {
     let dir = tempfile::tempdir().unwrap();
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     std::fs::copy(root.join("scenes/walker.glb"), dir.path().join("walker.glb")).unwrap();
     let ron = dir.path().join("room.ron");
+    // "rest" is the file at rest (static), "walk" plays its first animation
+    // (redefined every frame), each moved by its instance's keys.
     std::fs::write(
         &ron,
         r#"(version: 2, animation: Some((start: 0.0, end: 1.0, frames: 2)),
             materials: {"green": (diffuse: (0.2, 0.7, 0.3))},
-            objects: {"figure": Gltf(path: "walker.glb", material: Some("green"))},
-            instances: [(object: "figure", keys: Some((translate: [(0.0, (0.0, 0.0, 0.0)), (1.0, (5.0, 0.0, 0.0))])))])"#,
+            objects: {
+                "rest": Gltf(path: "walker.glb", material: Some("green"), animation: Some("none")),
+                "walk": Gltf(path: "walker.glb", material: Some("green")),
+            },
+            instances: [
+                (object: "rest", keys: Some((translate: [(0.0, (0.0, 0.0, 0.0)), (1.0, (5.0, 0.0, 0.0))]))),
+                (object: "walk"),
+            ])"#,
     )
     .unwrap();
     let mut scene = openrt_scene::load_ron(&ron).unwrap_or_else(|e| panic!("{e}"));
-    // The oracle: the glTF player's own world-space triangles at rest.
+    let walker = root.join("scenes/walker.glb");
+    // The oracles: the glTF player's own world-space triangles, at rest and playing.
     let at_rest = GltfPlayer::load_with(
-        &root.join("scenes/walker.glb"),
+        &walker,
         &GltfOptions {
             animation: GltfAnimation::None,
             ..GltfOptions::default()
         },
     )
     .unwrap();
-    let mut want: Vec<[f32; 3]> = world_vertices(&at_rest).iter().map(Vec3::to_array).collect();
-    let collect = |s: &openrt_scene::LoadedScene| -> Vec<[f32; 3]> {
-        scene_vertices(&s.ctx.scene()).iter().map(Vec3::to_array).collect()
-    };
-    let sorted = |mut v: Vec<[f32; 3]>| {
+    let mut playing = GltfPlayer::load(&walker).unwrap();
+    let sorted = |v: Vec<Vec3>| {
+        let mut v: Vec<[f32; 3]> = v.iter().map(Vec3::to_array).collect();
         v.sort_by(|a, b| a.partial_cmp(b).unwrap());
         v
     };
-    want.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    let before = collect(&scene);
-    assert_eq!(
-        sorted(before.clone()),
-        want,
-        "the same triangles, in the file's world space"
-    );
-    scene.set_time(1.0).unwrap();
-    let moved = collect(&scene);
-    assert_eq!(moved.len(), before.len());
+    // The two instances' vertices: "rest" first (instances in file order).
+    let split = |s: &openrt_scene::LoadedScene| -> (Vec<Vec3>, Vec<Vec3>) {
+        let sc = s.ctx.scene();
+        let v = scene_vertices(&sc);
+        let n = sc.instances()[0].geometry.tree.triangles().len() * 3;
+        (v[..n].to_vec(), v[n..].to_vec())
+    };
+    let want_rest = sorted(world_vertices(&at_rest));
+    let (rest0, walk0) = split(&scene);
     assert!(
-        moved
-            .iter()
-            .zip(&before)
-            .all(|(a, b)| (Vec3::from_array(*a) - Vec3::from_array(*b) - Vec3::X * 5.0).length() < 1e-5),
-        "the instance key moves the figure"
+        sorted(rest0.clone()) == want_rest,
+        "at rest: the file's triangles in its world space"
     );
+    assert!(
+        sorted(walk0.clone()) == sorted(world_vertices(&playing)),
+        "playing: the file's pose at the start time"
+    );
+    let m = scene.motion_classes();
+    assert_eq!(m.deforming_objects, 1, "{m}");
+    assert_eq!(m.deforming_triangles * 3, walk0.len(), "{m}");
+    scene.set_time(1.0).unwrap();
+    playing.set_time(1.0).unwrap();
+    let (rest1, walk1) = split(&scene);
+    assert_eq!(rest1.len(), rest0.len());
+    assert!(
+        rest1
+            .iter()
+            .zip(&rest0)
+            .all(|(a, b)| (*a - *b - Vec3::X * 5.0).length() < 1e-5),
+        "the instance key moves the figure at rest"
+    );
+    let walk1 = sorted(walk1);
+    assert!(
+        walk1 == sorted(world_vertices(&playing)),
+        "playing: the file's pose at t = 1"
+    );
+    assert!(walk1 != sorted(walk0), "the figure deforms");
+    // A choice the file lacks names what it has.
+    std::fs::write(
+        &ron,
+        r#"(version: 2, objects: {"f": Gltf(path: "walker.glb", animation: Some("Dance"))}, instances: [(object: "f")])"#,
+    )
+    .unwrap();
+    let e = openrt_scene::load_ron(&ron)
+        .err()
+        .expect("an unknown animation is an error");
+    assert!(e.to_string().contains("Dance"), "{e}");
     // A missing file names it.
     std::fs::write(
         &ron,

@@ -65,6 +65,33 @@ fn the_shipped_gltf_scene_matches_its_golden_frame() {
     }
 }
 
+/// The shipped RON scene with glTF figures: the room with two instances of
+/// one skinned figure mid-stride (redefined every frame), one turned on
+/// its keys, against golden frames.
+#[test]
+fn the_walker_room_matches_its_golden_frames() {
+    let mut s = load_ron(&repo().join("scenes/walker-room.ron")).unwrap_or_else(|e| panic!("{e}"));
+    let m = s.motion_classes();
+    assert_eq!((m.affine_instances, m.deforming_objects), (1, 1), "{m}");
+    let t = s.animation.expect("an animated scene").time(15);
+    s.set_time(t).unwrap();
+    for (mode, tag) in [(RenderMode::GlLike, "gl"), (RenderMode::Whitted, "whitted")] {
+        let settings = RenderSettings {
+            width: 160,
+            height: 120,
+            mode,
+            max_depth: 3,
+            ..RenderSettings::default()
+        };
+        let img = Renderer::new(2)
+            .expect("a render pool")
+            .render(&s.ctx.scene(), &s.env, &s.camera_at(t), &settings)
+            .unwrap()
+            .0;
+        common::check_golden(&format!("walker-room-f15-{tag}"), &img, 1.0, 0.005);
+    }
+}
+
 #[test]
 fn the_golden_check_catches_a_changed_image() {
     let mut img = render(&repo().join("scenes/room.ron"), RenderMode::GlLike);

@@ -94,7 +94,8 @@ impl Bin {
 /// 2 x 48 x 4, at most [`MAX_FIGURE_TRIANGLES`]), 2 high, skinned to `bones`
 /// joints in a chain (2 to 16) that sway in a two-second loop while the
 /// chain's root walks across the floor and back. Each vertex is weighted
-/// between its two nearest joints.
+/// between its two nearest joints. `scenes[0]` (the default) is all of it,
+/// `scenes[1]` the skinned figure alone (for placing it in other scenes).
 #[must_use]
 pub fn skinned_figure_glb(triangles: usize, bones: usize) -> Vec<u8> {
     let bones = bones.clamp(2, 16);
@@ -213,7 +214,10 @@ pub fn skinned_figure_glb(triangles: usize, bones: usize) -> Vec<u8> {
         "extensionsUsed": ["KHR_lights_punctual"],
         "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "color": [1.0, 1.0, 1.0], "intensity": 1.0}]}},
         "scene": 0,
-        "scenes": [{"nodes": [0, 1, 2, 3, 4, 5]}],
+        "scenes": [
+            {"name": "walker", "nodes": [0, 1, 2, 3, 4, 5]},
+            {"name": "figure", "nodes": [2, 5]}
+        ],
         "nodes": nodes,
         "skins": [{"joints": (5..5 + bones).collect::<Vec<_>>(), "inverseBindMatrices": ibm, "skeleton": 5}],
         "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.05}}],
@@ -253,5 +257,23 @@ mod tests {
             assert!(tube.abs_diff(want) <= 2 * AROUND, "{tube} for {want}");
             assert!(p.warnings().is_empty(), "{:?}", p.warnings());
         }
+        let figure = super::super::GltfPlayer::from_slice_with(
+            &skinned_figure_glb(1000, 4),
+            &super::super::GltfOptions {
+                scene: Some(1),
+                ..super::super::GltfOptions::default()
+            },
+        )
+        .unwrap();
+        let classes = figure.motion_classes();
+        assert_eq!(
+            (
+                classes.static_instances,
+                classes.affine_instances,
+                classes.deforming_objects
+            ),
+            (0, 0, 1),
+            "scenes[1]: the figure alone"
+        );
     }
 }

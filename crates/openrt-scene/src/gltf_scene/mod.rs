@@ -124,7 +124,18 @@ impl GltfPlayer {
     /// A glTF or GLB file held in memory (buffers and images embedded:
     /// external files are refused); errors name `<memory>`.
     pub fn from_slice(bytes: &[u8]) -> Result<Self, SceneError> {
-        convert::load_slice(Path::new("<memory>"), bytes, None, &GltfOptions::default())
+        Self::from_slice_with(bytes, &GltfOptions::default())
+    }
+
+    /// [`GltfPlayer::from_slice`] with the scene, animation and camera of `options`.
+    pub fn from_slice_with(bytes: &[u8], options: &GltfOptions) -> Result<Self, SceneError> {
+        convert::load_slice(Path::new("<memory>"), bytes, None, options)
+    }
+
+    /// The file played.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     /// What the load accepted leniently (skins, morph targets, spot lights...).
