@@ -48,6 +48,8 @@ pub struct TextureData {
     pub rgb8: Vec<u8>,
     /// RGB texels, row by row, otherwise.
     pub texels: Vec<[f32; 3]>,
+    /// Addressing along u and v.
+    pub wrap: [crate::TextureWrap; 2],
 }
 
 impl TextureData {
@@ -67,12 +69,14 @@ impl TextureData {
                 height: t.height() as u32,
                 rgb8,
                 texels: Vec::new(),
+                wrap: t.wrap(),
             },
             None => Self {
                 width: t.width() as u32,
                 height: t.height() as u32,
                 rgb8: Vec::new(),
                 texels: t.texels().iter().map(Vec3::to_array).collect(),
+                wrap: t.wrap(),
             },
         }
     }
@@ -87,7 +91,7 @@ impl TextureData {
                 .map(|p| Vec3::new(f32::from(p[0]), f32::from(p[1]), f32::from(p[2])) / 255.0)
                 .collect()
         };
-        Texture::new(self.width as usize, self.height as usize, texels)
+        Texture::new(self.width as usize, self.height as usize, texels).map(|t| t.with_wrap(self.wrap[0], self.wrap[1]))
     }
 }
 
@@ -682,6 +686,26 @@ mod tests {
         m.commit().unwrap();
         sync(&mut m, &mut r);
         assert!(r.object_builder(b).is_err(), "deleted on the replica too");
+    }
+
+    #[test]
+    fn textures_reach_the_replica_with_their_wrap_modes() {
+        use crate::{Texture, TextureWrap};
+        let mut m = Context::new();
+        let a = m.gen_object();
+        define(&mut m, a, 1);
+        m.instantiate(a).unwrap();
+        m.commit().unwrap();
+        m.record_changes();
+        let mut r = Context::new();
+        let texels = (0..6).map(|i| Vec3::splat(i as f32 / 7.0)).collect();
+        let t = Texture::new(3, 2, texels)
+            .unwrap()
+            .with_wrap(TextureWrap::MirroredRepeat, TextureWrap::ClampToEdge);
+        m.create_texture(t.clone());
+        m.commit().unwrap();
+        sync(&mut m, &mut r);
+        assert_eq!(*r.scene().textures()[0], t, "texels and wrap modes");
     }
 
     #[test]

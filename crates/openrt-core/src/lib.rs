@@ -125,7 +125,7 @@ pub use render::{
 };
 pub use scene::{Scene, SceneHit, Surface};
 pub use shade::{RayCounts, RenderMode};
-pub use texture::{Texture, TextureFilter};
+pub use texture::{Texture, TextureFilter, TextureWrap};
 
 /// What a program using the API needs, in one import:
 /// `use openrt_core::prelude::*;` (with `glam`'s vector and matrix types and
@@ -134,7 +134,7 @@ pub mod prelude {
     pub use crate::{
         Accel, Backend, Camera, Context, CoreError, Environment, Image, InstanceId, Material, MaterialId, ObjectId,
         PointLight, PrimitiveKind, RenderMode, RenderSettings, Renderer, Scene, SceneHit, Surface, Texture,
-        TextureFilter, TextureId, VertexArrays,
+        TextureFilter, TextureId, TextureWrap, VertexArrays,
     };
     pub use glam::{Mat4, Vec2, Vec3};
     pub use openrt_accel::Ray;

@@ -1,7 +1,74 @@
-//! Textures: RGB images with a mipmap chain, sampled with repeat
-//! addressing and nearest, bilinear or trilinear filtering.
+//! Textures: RGB images with a mipmap chain, sampled with repeat,
+//! clamp-to-edge or mirrored-repeat addressing and nearest, bilinear or
+//! trilinear filtering.
 
 use glam::{Vec2, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// How a texture coordinate outside `[0, 1]` is addressed, per axis (the
+/// wrap modes of OpenGL and of glTF samplers).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum TextureWrap {
+    /// The image tiles the plane.
+    #[default]
+    Repeat,
+    /// The edge texels extend outward.
+    ClampToEdge,
+    /// The image tiles the plane, every other tile mirrored.
+    MirroredRepeat,
+}
+
+/// Texel indices of the two bilinear taps on one axis and the weight of
+/// the second, for a coordinate `c` on an axis of `n` texels addressed by
+/// `mode`; `c` is finite.
+#[inline]
+fn taps(c: f32, n: usize, mode: TextureWrap) -> (usize, usize, f32) {
+    let ni = n as i64;
+    let clamp = |i: i64| i.clamp(0, ni - 1) as usize;
+    match mode {
+        TextureWrap::Repeat => {
+            // The arithmetic of `Level::bilinear`, bit for bit.
+            let c = c - floor(c);
+            let x = c * n as f32 - 0.5;
+            let x0 = floor(x);
+            (wrap(x0 as i64, ni), wrap(x0 as i64 + 1, ni), x - x0)
+        }
+        TextureWrap::ClampToEdge | TextureWrap::MirroredRepeat => {
+            let c = folded(c, mode);
+            let x = c * n as f32 - 0.5;
+            let x0 = floor(x);
+            (clamp(x0 as i64), clamp(x0 as i64 + 1), x - x0)
+        }
+    }
+}
+
+/// The texel index holding coordinate `c` on an axis of `n` texels; `c` is finite.
+#[inline]
+fn nearest_tap(c: f32, n: usize, mode: TextureWrap) -> usize {
+    match mode {
+        TextureWrap::Repeat => {
+            // The arithmetic of `Level::nearest`, bit for bit.
+            let c = c - floor(c);
+            wrap(floor(c * n as f32) as i64, n as i64)
+        }
+        TextureWrap::ClampToEdge | TextureWrap::MirroredRepeat => {
+            (floor(folded(c, mode) * n as f32) as i64).clamp(0, n as i64 - 1) as usize
+        }
+    }
+}
+
+/// `c` for clamped addressing: mirrored into `[0, 1]` (period 2) for
+/// [`TextureWrap::MirroredRepeat`], else limited to `[-1, 2]` (beyond which
+/// every tap is an edge texel anyway) so the texel arithmetic stays exact.
+#[inline]
+fn folded(c: f32, mode: TextureWrap) -> f32 {
+    if mode == TextureWrap::MirroredRepeat {
+        let m = c - 2.0 * floor(c * 0.5);
+        if m > 1.0 { 2.0 - m } else { m }
+    } else {
+        c.clamp(-1.0, 2.0)
+    }
+}
 
 /// How a texture is filtered.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -94,6 +161,23 @@ impl Level {
         top.lerp(bottom, fy)
     }
 
+    /// Bilinear sample with each axis addressed by its mode; `uv` is finite.
+    fn bilinear_addressed(&self, uv: Vec2, wrap: [TextureWrap; 2]) -> Vec3 {
+        let (xa, xb, fx) = taps(uv.x, self.width, wrap[0]);
+        let (ya, yb, fy) = taps(uv.y, self.height, wrap[1]);
+        let top = self.texel(xa, ya).lerp(self.texel(xb, ya), fx);
+        let bottom = self.texel(xa, yb).lerp(self.texel(xb, yb), fx);
+        top.lerp(bottom, fy)
+    }
+
+    /// The texel holding `uv`, each axis addressed by its mode; `uv` is finite.
+    fn nearest_addressed(&self, uv: Vec2, wrap: [TextureWrap; 2]) -> Vec3 {
+        self.texel(
+            nearest_tap(uv.x, self.width, wrap[0]),
+            nearest_tap(uv.y, self.height, wrap[1]),
+        )
+    }
+
     /// The texel holding `uv`; `uv` is finite.
     fn nearest(&self, uv: Vec2) -> Vec3 {
         let u = uv.x - floor(uv.x);
@@ -110,6 +194,8 @@ impl Level {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
     levels: Vec<Level>,
+    /// Addressing along u and v.
+    wrap: [TextureWrap; 2],
 }
 
 impl Texture {
@@ -125,7 +211,33 @@ impl Texture {
             let next = last.halve();
             levels.push(next);
         }
-        Some(Self { levels })
+        Some(Self {
+            levels,
+            wrap: [TextureWrap::Repeat; 2],
+        })
+    }
+
+    /// The texture addressed by `u` along u and `v` along v (new textures repeat).
+    #[must_use]
+    pub fn with_wrap(mut self, u: TextureWrap, v: TextureWrap) -> Self {
+        self.wrap = [u, v];
+        self
+    }
+
+    /// The addressing along u and v.
+    #[must_use]
+    pub fn wrap(&self) -> [TextureWrap; 2] {
+        self.wrap
+    }
+
+    /// Bilinear sample of level `i`, addressed by the texture's modes.
+    #[inline]
+    fn bilinear(&self, i: usize, uv: Vec2) -> Vec3 {
+        if self.wrap == [TextureWrap::Repeat; 2] {
+            self.levels[i].bilinear(uv)
+        } else {
+            self.levels[i].bilinear_addressed(uv, self.wrap)
+        }
     }
 
     /// Width in texels.
@@ -152,15 +264,15 @@ impl Texture {
         self.levels.len()
     }
 
-    /// Bilinear sample of the full-size image at `uv` with repeat addressing
-    /// (any `uv`, also far outside `[0, 1]`; non-finite coordinates sample
-    /// texel (0, 0)).
+    /// Bilinear sample of the full-size image at `uv`, addressed by the
+    /// texture's wrap modes (any `uv`, also far outside `[0, 1]`; non-finite
+    /// coordinates sample texel (0, 0)).
     #[must_use]
     pub fn sample(&self, uv: Vec2) -> Vec3 {
         if !uv.is_finite() {
             return self.levels[0].texels[0];
         }
-        self.levels[0].bilinear(uv)
+        self.bilinear(0, uv)
     }
 
     /// A filtered sample at `uv` for a footprint of level of detail `lod`
@@ -172,8 +284,9 @@ impl Texture {
             return self.levels[0].texels[0];
         }
         match filter {
-            TextureFilter::Nearest => self.levels[0].nearest(uv),
-            TextureFilter::Bilinear => self.levels[0].bilinear(uv),
+            TextureFilter::Nearest if self.wrap == [TextureWrap::Repeat; 2] => self.levels[0].nearest(uv),
+            TextureFilter::Nearest => self.levels[0].nearest_addressed(uv, self.wrap),
+            TextureFilter::Bilinear => self.bilinear(0, uv),
             TextureFilter::Trilinear => {
                 let top = (self.levels.len() - 1) as f32;
                 // NOTE: max/min, not clamp: a NaN lod becomes 0.
@@ -181,11 +294,11 @@ impl Texture {
                 let base = floor(lod);
                 let f = lod - base;
                 let i = base as usize;
-                let a = self.levels[i].bilinear(uv);
+                let a = self.bilinear(i, uv);
                 if f == 0.0 || i + 1 >= self.levels.len() {
                     a
                 } else {
-                    a.lerp(self.levels[i + 1].bilinear(uv), f)
+                    a.lerp(self.bilinear(i + 1, uv), f)
                 }
             }
         }
@@ -364,6 +477,88 @@ mod tests {
             );
         }
         assert_eq!(t.sample(Vec2::splat(f32::NAN)), Vec3::ZERO);
+    }
+
+    /// A 5 x 3 texture of distinct texels (odd sizes: the mipmaps' edges too).
+    fn ramp() -> Texture {
+        let texels = (0..15)
+            .map(|i| Vec3::new(i as f32 / 15.0, (i % 5) as f32 / 5.0, (i / 5) as f32 / 3.0))
+            .collect();
+        Texture::new(5, 3, texels).unwrap()
+    }
+
+    #[test]
+    fn addressed_repeat_is_the_repeat_kernel_bit_for_bit() {
+        // The per-axis taps of the other modes, given Repeat, against the
+        // repeat-only kernel they stand beside.
+        let t = ramp();
+        let mut rng = SmallRng::seed_from_u64(41);
+        for _ in 0..20_000 {
+            let uv = Vec2::new(rng.random_range(-40.0..40.0), rng.random_range(-3.0..3.0));
+            for level in &t.levels {
+                let a = level.bilinear(uv);
+                let b = level.bilinear_addressed(uv, [TextureWrap::Repeat; 2]);
+                assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "{uv}");
+                assert_eq!(
+                    level.nearest(uv),
+                    level.nearest_addressed(uv, [TextureWrap::Repeat; 2]),
+                    "{uv}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn clamp_to_edge_extends_the_edge_texels() {
+        let t = ramp().with_wrap(TextureWrap::ClampToEdge, TextureWrap::ClampToEdge);
+        let texel = |x: usize, y: usize| t.texels()[y * 5 + x];
+        // Inside the texel centres: as repeating.
+        let inside = Vec2::new(0.5, 0.5);
+        assert_eq!(t.sample(inside), ramp().sample(inside));
+        // Outside: the nearest edge texel, however far.
+        for (uv, want) in [
+            (Vec2::new(-3.0, 0.5), texel(0, 1)),
+            (Vec2::new(1e9, 0.5), texel(4, 1)),
+            (Vec2::new(0.5, -0.01), texel(2, 0)),
+            (Vec2::new(2.0, 7.0), texel(4, 2)),
+        ] {
+            assert_eq!(t.sample(uv), want, "{uv}");
+            for filter in TextureFilter::ALL {
+                assert_eq!(t.sample_filtered(uv, 0.0, filter), want, "{uv} {filter:?}");
+            }
+        }
+        // Every mipmap level is clamped: a coarse sample far outside is that
+        // level's edge, not a blend with the other side.
+        let coarse = t.sample_filtered(Vec2::new(-5.0, 0.5), 1.0, TextureFilter::Trilinear);
+        let l1 = &t.levels[1];
+        assert_eq!((l1.width, l1.height), (3, 2));
+        assert_eq!(
+            coarse,
+            l1.texel(0, 0).lerp(l1.texel(0, 1), 0.5),
+            "level 1: v = 0.5 is between its rows"
+        );
+    }
+
+    #[test]
+    fn mirrored_repeat_reflects_every_other_tile() {
+        let t = ramp().with_wrap(TextureWrap::MirroredRepeat, TextureWrap::Repeat);
+        let mut rng = SmallRng::seed_from_u64(7);
+        for _ in 0..2_000 {
+            // Dyadic coordinates: the mirrored ones are exact.
+            let u = f32::from(rng.random_range(0u16..1024)) / 1024.0;
+            let v = f32::from(rng.random_range(0u16..1024)) / 1024.0;
+            let at = t.sample(Vec2::new(u, v));
+            assert_eq!(t.sample(Vec2::new(2.0 - u, v)), at, "mirrored in [1, 2]: {u}");
+            assert_eq!(t.sample(Vec2::new(-u, v)), at, "mirrored in [-1, 0]: {u}");
+            assert_eq!(t.sample(Vec2::new(u + 4.0, v)), at, "period 2: {u}");
+            assert_eq!(
+                t.sample_filtered(Vec2::new(-u, v), 0.0, TextureFilter::Nearest),
+                t.sample_filtered(Vec2::new(u, v), 0.0, TextureFilter::Nearest),
+                "{u}"
+            );
+        }
+        // v still repeats.
+        assert_eq!(t.sample(Vec2::new(0.3, 0.25 + 3.0)), t.sample(Vec2::new(0.3, 0.25)));
     }
 
     #[test]

@@ -6,8 +6,9 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{Quat, Vec3};
+use glam::{Quat, Vec2, Vec3};
 use openrt_accel::Ray;
+use openrt_core::TextureWrap;
 use openrt_scene::{GltfPlayer, SceneError, ScenePlayer};
 use serde_json::{Value, json};
 
@@ -418,7 +419,7 @@ fn transmission_and_ior_refract_and_emission_is_added() {
 }
 
 #[test]
-fn base_colour_textures_are_read_and_clamping_samplers_warned() {
+fn base_colour_textures_are_read_with_their_samplers_wrap_modes() {
     let dir = tempfile::tempdir().unwrap();
     image::RgbImage::from_fn(4, 2, |x, _| image::Rgb([x as u8 * 60, 200, 10]))
         .save(dir.path().join("tex.png"))
@@ -426,28 +427,48 @@ fn base_colour_textures_are_read_and_clamping_samplers_warned() {
     let mut b = Builder::default();
     let pos = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3", 3);
     let uv = b.floats(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0], "VEC2", 2);
+    // One image under three textures: clamped along u, mirrored along v;
+    // the same sampler again (shared); no sampler (repeat).
     let doc = json!({
         "scene": 0,
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "material": 0}]}],
-        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
-        "textures": [{"source": 0, "sampler": 0}],
-        "samplers": [{"wrapS": 33071, "wrapT": 10497}],
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "nodes": [{"mesh": 0}, {"mesh": 1}, {"mesh": 2}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "material": 0}]},
+            {"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "material": 1}]},
+            {"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "material": 2}]}
+        ],
+        "materials": [
+            {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+            {"pbrMetallicRoughness": {"baseColorTexture": {"index": 1}}},
+            {"pbrMetallicRoughness": {"baseColorTexture": {"index": 2}}}
+        ],
+        "textures": [{"source": 0, "sampler": 0}, {"source": 0, "sampler": 0}, {"source": 0}],
+        "samplers": [{"wrapS": 33071, "wrapT": 33648}],
         "images": [{"uri": "tex.png"}],
     });
     let path = b.write_gltf(dir.path(), "textured", doc);
     let p = player(&path);
     let scene = p.ctx.scene();
-    assert!(
-        scene.materials().iter().any(|m| m.texture.is_some()),
-        "the base colour texture is read"
+    let textures: Vec<_> = scene
+        .materials()
+        .iter()
+        .filter_map(|m| m.texture)
+        .map(|t| scene.textures()[t.index() as usize].clone())
+        .collect();
+    assert_eq!(textures.len(), 3, "the base colour textures are read");
+    assert_eq!(scene.textures().len(), 2, "one texture per image and addressing");
+    assert_eq!(
+        textures[0].wrap(),
+        [TextureWrap::ClampToEdge, TextureWrap::MirroredRepeat]
     );
-    assert!(
-        p.warnings().iter().any(|w| w.to_string().contains("CLAMP_TO_EDGE")),
-        "{:?}",
-        p.warnings()
-    );
+    assert_eq!(textures[2].wrap(), [TextureWrap::Repeat; 2]);
+    // Clamped along u: far right is the right edge texel (x = 3); repeated,
+    // u = 1.375 is u = 0.375 (between texels 1 and 2).
+    let right = Vec3::new(180.0, 200.0, 10.0) / 255.0;
+    assert_eq!(textures[0].sample(Vec2::new(7.5, 0.25)), right);
+    assert_ne!(textures[2].sample(Vec2::new(1.375, 0.25)), right);
+    assert!(p.warnings().is_empty(), "{:?}", p.warnings());
 }
 
 #[test]

@@ -12,7 +12,7 @@ use gltf::json::animation::Property as P;
 use gltf::json::camera::Type as CamType;
 use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
 use gltf::json::validation::Checked;
-use openrt_core::{Camera, Context, Environment, Material, MaterialId, ObjectId, PrimitiveKind, Texture};
+use openrt_core::{Camera, Context, Environment, Material, MaterialId, ObjectId, PrimitiveKind, Texture, TextureWrap};
 
 use super::animation::{Channel, Interpolation, Property, Trs, WeightChannel};
 use super::deform::{self, Deformer, GLTF_MAX_INFLUENCES, Influences, Prim, Shape, Skin, Target};
@@ -677,7 +677,7 @@ fn convert_materials(
     ctx: &mut Context,
     warn: &mut Warnings<'_>,
 ) -> Result<Vec<MaterialId>, SceneError> {
-    let mut images: HashMap<usize, openrt_core::TextureId> = HashMap::new();
+    let mut images: HashMap<(usize, TextureWrap, TextureWrap), openrt_core::TextureId> = HashMap::new();
     let mut out = Vec::new();
     for m in doc.materials() {
         let at = format!("materials[{}]", m.index().unwrap_or(0));
@@ -701,23 +701,22 @@ fn convert_materials(
                     );
                 }
                 let sampler = info.texture().sampler();
-                if [sampler.wrap_s(), sampler.wrap_t()]
-                    .iter()
-                    .any(|w| *w != gltf::texture::WrappingMode::Repeat)
-                {
-                    warn.add(
-                        &at,
-                        "CLAMP_TO_EDGE and MIRRORED_REPEAT samplers are read as REPEAT (textures repeat here)",
-                    );
-                }
+                let wrap = |w: gltf::texture::WrappingMode| match w {
+                    gltf::texture::WrappingMode::Repeat => TextureWrap::Repeat,
+                    gltf::texture::WrappingMode::ClampToEdge => TextureWrap::ClampToEdge,
+                    gltf::texture::WrappingMode::MirroredRepeat => TextureWrap::MirroredRepeat,
+                };
+                let (u, v) = (wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
+                // One texture per image and addressing (images shared by
+                // samplers of the same modes are read once).
                 let image = info.texture().source();
-                if let Some(&t) = images.get(&image.index()) {
+                if let Some(&t) = images.get(&(image.index(), u, v)) {
                     Some(t)
                 } else {
                     let t = convert_image(path, base, &image, buffers, warn)?;
-                    let id = t.map(|t| ctx.create_texture(t));
+                    let id = t.map(|t| ctx.create_texture(t.with_wrap(u, v)));
                     if let Some(id) = id {
-                        images.insert(image.index(), id);
+                        images.insert((image.index(), u, v), id);
                     }
                     id
                 }
