@@ -471,6 +471,60 @@ fn base_colour_textures_are_read_with_their_samplers_wrap_modes() {
     assert!(p.warnings().is_empty(), "{:?}", p.warnings());
 }
 
+/// Blender's exporter writes KHR_texture_transform (mapping nodes) and
+/// KHR_materials_emissive_strength (emission above 1): both are read, and
+/// an optional extension that is not read is a warning naming it.
+#[test]
+fn texture_transforms_and_emissive_strength_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    image::RgbImage::from_fn(2, 2, |x, y| image::Rgb([x as u8 * 200, y as u8 * 200, 10]))
+        .save(dir.path().join("tex.png"))
+        .unwrap();
+    let mut b = Builder::default();
+    let pos = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3", 3);
+    let uvs = [[0.0f32, 0.0], [1.0, 0.0], [0.25, 0.5]];
+    let uv = b.floats(&uvs.concat(), "VEC2", 2);
+    let (offset, rotation, scale) = ([0.5f32, -0.25], 0.3f32, [2.0f32, 3.0]);
+    let doc = json!({
+        "extensionsUsed": ["KHR_texture_transform", "KHR_materials_emissive_strength", "EXT_made_up"],
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "material": 0}]}],
+        "materials": [{
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {
+                "offset": offset, "rotation": rotation, "scale": scale}}}},
+            "emissiveFactor": [0.5, 0.25, 0.0],
+            "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}
+        }],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "tex.png"}],
+    });
+    let path = b.write_gltf(dir.path(), "transformed", doc);
+    let p = player(&path);
+    let scene = p.ctx.scene();
+    // The extension's matrix, written out: translation * rotation * scale.
+    let (s, c) = rotation.sin_cos();
+    let want: Vec<Vec2> = uvs
+        .iter()
+        .map(|[u, v]| {
+            let (su, sv) = (u * scale[0], v * scale[1]);
+            Vec2::new(offset[0] + c * su - s * sv, offset[1] + s * su + c * sv)
+        })
+        .collect();
+    let got = scene.instances()[0].geometry.shading.uvs[0];
+    for (g, w) in got.iter().zip(&want) {
+        assert!((*g - *w).length() < 1e-6, "{got:?} against {want:?}");
+    }
+    let m = scene.materials().iter().find(|m| m.texture.is_some()).unwrap();
+    assert_eq!(m.emission, Vec3::new(2.0, 1.0, 0.0), "the factor times the strength");
+    let w: Vec<String> = p.warnings().iter().map(ToString::to_string).collect();
+    assert!(
+        w.len() == 1 && w[0].contains("EXT_made_up") && w[0].contains("extensionsUsed"),
+        "{w:?}"
+    );
+}
+
 #[test]
 fn lights_on_animated_nodes_move_with_them() {
     let dir = tempfile::tempdir().unwrap();

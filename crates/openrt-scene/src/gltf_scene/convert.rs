@@ -323,6 +323,14 @@ fn load_checked(
     }
     let buffers = gltf::import_buffers(doc, base, gltf.blob.clone()).map_err(|e| invalid(path, "buffers", e))?;
     let mut warn = Warnings { path, list: Vec::new() };
+    for ext in doc.extensions_used() {
+        if !GLTF_SUPPORTED_REQUIRED.contains(&ext) {
+            warn.add(
+                "extensionsUsed",
+                format!("the extension {ext} is not read: the scene is rendered without it"),
+            );
+        }
+    }
     let scene = match options.scene {
         Some(k) => doc.scenes().nth(k).ok_or_else(|| {
             invalid(
@@ -725,9 +733,15 @@ fn convert_materials(
         if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
             warn.add(&at, "alphaMode MASK and BLEND are rendered opaque");
         }
-        let emission = Vec3::from_array(m.emissive_factor());
-        if !emission.is_finite() {
-            return Err(invalid(path, &at, "emissiveFactor is not finite"));
+        // KHR_materials_emissive_strength scales the factor (Blender writes
+        // it for emission stronger than 1).
+        let emission = Vec3::from_array(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
+        if !emission.is_finite() || emission.min_element() < 0.0 {
+            return Err(invalid(
+                path,
+                &at,
+                "emissiveFactor times emissive_strength is not finite and non-negative",
+            ));
         }
         if m.emissive_texture().is_some() {
             warn.add(&at, "emissiveTexture is not read: the emissiveFactor is used alone");
@@ -806,6 +820,42 @@ fn convert_image(
     Ok(Texture::new(data.width as usize, data.height as usize, texels))
 }
 
+/// The KHR_texture_transform of a primitive's base colour texture as a
+/// matrix on its texture coordinates (`translation * rotation * scale`, as
+/// the extension defines it), or `None` without one.
+fn uv_transform(
+    path: &Path,
+    p: &gltf::Primitive<'_>,
+    warn: &mut Warnings<'_>,
+) -> Result<Option<glam::Affine2>, SceneError> {
+    let Some(t) = p
+        .material()
+        .pbr_metallic_roughness()
+        .base_color_texture()
+        .and_then(|info| info.texture_transform())
+    else {
+        return Ok(None);
+    };
+    let at = format!("materials[{}]", p.material().index().unwrap_or(0));
+    let (offset, scale, rotation) = (Vec2::from_array(t.offset()), Vec2::from_array(t.scale()), t.rotation());
+    if !(offset.is_finite() && scale.is_finite() && rotation.is_finite()) {
+        return Err(invalid(
+            path,
+            &at,
+            "KHR_texture_transform has a value that is not finite",
+        ));
+    }
+    if t.tex_coord().is_some_and(|k| k != 0) {
+        warn.add(&at, "KHR_texture_transform's texCoord is not read: TEXCOORD_0 is used");
+    }
+    let (s, c) = rotation.sin_cos();
+    let rotate = glam::Mat2::from_cols(Vec2::new(c, s), Vec2::new(-s, c));
+    Ok(Some(glam::Affine2::from_mat2_translation(
+        rotate * glam::Mat2::from_diagonal(scale),
+        offset,
+    )))
+}
+
 /// Every mesh's primitives as read (`None` for a mesh without triangles):
 /// vertices, whole-triangle indices, material, skin influences (normalized
 /// weights) and morph targets.
@@ -846,9 +896,14 @@ fn convert_meshes(
                 .collect();
             let count = positions.len();
             let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(Vec3::from_array).collect());
-            let uvs: Option<Vec<Vec2>> = reader
+            let mut uvs: Option<Vec<Vec2>> = reader
                 .read_tex_coords(0)
                 .map(|t| t.into_f32().map(Vec2::from_array).collect());
+            if let (Some(uvs), Some(m)) = (uvs.as_mut(), uv_transform(path, &p, warn)?) {
+                for uv in uvs {
+                    *uv = m.transform_point2(*uv);
+                }
+            }
             let mut indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None => (0..count as u32).collect(),

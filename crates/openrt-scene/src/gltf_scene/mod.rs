@@ -33,9 +33,16 @@ pub use deform::GLTF_MAX_INFLUENCES;
 pub use figure::{MAX_FIGURE_TRIANGLES, skinned_figure_glb};
 pub use options::{GltfAnimation, GltfOptions, MotionClasses};
 
-/// glTF extensions a file may require and this loader reads.
-pub const GLTF_SUPPORTED_REQUIRED: &[&str] =
-    &["KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior"];
+/// glTF extensions this loader reads (a file may require them); an
+/// extension a file uses without requiring it that is not listed here is
+/// a warning (the scene renders without it).
+pub const GLTF_SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
+];
 
 /// The structure a deforming (skinned or morphed) object gets unless
 /// [`GltfPlayer::set_deforming_accel`] says otherwise: BVHs, whose refit the
