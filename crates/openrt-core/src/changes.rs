@@ -32,6 +32,8 @@ pub struct MaterialData {
     pub params: [f32; 3],
     /// Texture index.
     pub texture: Option<u32>,
+    /// Emission texture index.
+    pub emission_texture: Option<u32>,
     /// One-sided surface.
     pub one_sided: bool,
 }
@@ -332,6 +334,7 @@ impl Context {
                         colors: [v3(m.ambient), v3(m.diffuse), v3(m.specular), v3(m.emission)],
                         params: [m.shininess, m.transmission, m.ior],
                         texture: m.texture.map(|t| t.0),
+                        emission_texture: m.emission_texture.map(|t| t.0),
                         one_sided: m.one_sided,
                     })
                     .collect(),
@@ -450,6 +453,7 @@ impl Context {
                     transmission: m.params[1],
                     ior: m.params[2],
                     texture: m.texture.map(TextureId),
+                    emission_texture: m.emission_texture.map(TextureId),
                     one_sided: m.one_sided,
                 });
             }
@@ -689,7 +693,7 @@ mod tests {
     }
 
     #[test]
-    fn textures_reach_the_replica_with_their_wrap_modes() {
+    fn textures_reach_the_replica_with_their_wrap_modes_and_emission_textures() {
         use crate::{Texture, TextureWrap};
         let mut m = Context::new();
         let a = m.gen_object();
@@ -702,10 +706,16 @@ mod tests {
         let t = Texture::new(3, 2, texels)
             .unwrap()
             .with_wrap(TextureWrap::MirroredRepeat, TextureWrap::ClampToEdge);
-        m.create_texture(t.clone());
+        let id = m.create_texture(t.clone());
+        m.create_material(crate::Material {
+            emission_texture: Some(id),
+            ..crate::Material::default()
+        })
+        .unwrap();
         m.commit().unwrap();
         sync(&mut m, &mut r);
         assert_eq!(*r.scene().textures()[0], t, "texels and wrap modes");
+        assert_eq!(r.scene().materials(), m.scene().materials(), "the emission texture too");
     }
 
     #[test]

@@ -723,8 +723,10 @@ impl Context {
                 what: format!("material {m:?}"),
             });
         }
-        if let Some(t) = m.texture
-            && t.0 as usize >= self.textures.len()
+        if let Some(t) = [m.texture, m.emission_texture]
+            .into_iter()
+            .flatten()
+            .find(|t| t.0 as usize >= self.textures.len())
         {
             return Err(CoreError::UnknownTexture {
                 call: "create_material",

@@ -15,8 +15,9 @@ pub struct Material {
     pub specular: Vec3,
     /// Phong exponent.
     pub shininess: f32,
-    /// Light the surface gives off itself, added unlit and untextured
-    /// (glTF's `emissiveFactor`; zero for NFF/AFF materials).
+    /// Light the surface gives off itself, added unlit (glTF's
+    /// `emissiveFactor`, times `emission_texture` when there is one; zero
+    /// for NFF/AFF materials).
     pub emission: Vec3,
     /// Transmission weight (0 = opaque).
     pub transmission: f32,
@@ -24,6 +25,8 @@ pub struct Material {
     pub ior: f32,
     /// Texture multiplying the ambient and diffuse colours.
     pub texture: Option<TextureId>,
+    /// Texture multiplying the emission (glTF's `emissiveTexture`).
+    pub emission_texture: Option<TextureId>,
     /// One-sided surface (NFF polygons): rays reaching its back side pass
     /// through it. Shadow rays treat every surface as opaque.
     pub one_sided: bool,
@@ -40,6 +43,7 @@ impl Default for Material {
             transmission: 0.0,
             ior: 1.0,
             texture: None,
+            emission_texture: None,
             one_sided: false,
         }
     }

@@ -478,24 +478,38 @@ impl<T: Tracer> Shader<'_, T> {
     #[inline(always)]
     pub fn texel(&self, prep: &Prepared) -> Vec3 {
         let scene = self.scene;
-        let surf = &prep.surf;
-        let (d, nf) = (prep.d, prep.nf);
-        let mat = &scene.materials()[surf.material.index() as usize];
+        let mat = &scene.materials()[prep.surf.material.index() as usize];
         mat.texture
             .and_then(|t| scene.textures().get(t.index() as usize))
-            .map_or(Vec3::ONE, |t| {
-                if self.filter != TextureFilter::Trilinear {
-                    return t.sample_filtered(surf.uv, 0.0, self.filter);
-                }
-                // Level of detail (ray cones, RTG ch. 20, eq. 34): the texel
-                // to world area ratio of the triangle, the cone's width, and
-                // the obliquity of the hit.
-                // PERF: one log2 of the product instead of three.
-                let texel_area = surf.uv_area * (t.width() * t.height()) as f32;
-                let (w, cos) = (prep.cone.width, d.dot(nf));
-                let lod = 0.5 * (texel_area * w * w / (surf.world_area * cos * cos)).log2();
-                t.sample_filtered(surf.uv, lod, self.filter)
-            })
+            .map_or(Vec3::ONE, |t| self.lookup(prep, t))
+    }
+
+    /// [`Shader::lookup`] for an emission texture, out of line: the light
+    /// loop around it stays as small as without emission textures.
+    #[cold]
+    #[inline(never)]
+    fn emission_texel(&self, prep: &Prepared, t: &crate::Texture) -> Vec3 {
+        self.lookup(prep, t)
+    }
+
+    /// Texture `t` at a prepared hit: the level of detail from the ray
+    /// cone, then the filtered lookup.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn lookup(&self, prep: &Prepared, t: &crate::Texture) -> Vec3 {
+        let surf = &prep.surf;
+        let (d, nf) = (prep.d, prep.nf);
+        if self.filter != TextureFilter::Trilinear {
+            return t.sample_filtered(surf.uv, 0.0, self.filter);
+        }
+        // Level of detail (ray cones, RTG ch. 20, eq. 34): the texel
+        // to world area ratio of the triangle, the cone's width, and
+        // the obliquity of the hit.
+        // PERF: one log2 of the product instead of three.
+        let texel_area = surf.uv_area * (t.width() * t.height()) as f32;
+        let (w, cos) = (prep.cone.width, d.dot(nf));
+        let lod = 0.5 * (texel_area * w * w / (surf.world_area * cos * cos)).log2();
+        t.sample_filtered(surf.uv, lod, self.filter)
     }
 
     /// [`Shader::local`] with the hit's texel ([`Shader::texel`]) given.
@@ -520,8 +534,16 @@ impl<T: Tracer> Shader<'_, T> {
         // scalar loop's bits); the sums stay in the lights' order, three
         // channels to a register (`Vec3A`: the same products and sums).
         let (kd, specular) = (Vec3A::from(kd), Vec3A::from(mat.specular));
-        // Emission is added unlit (zero adds nothing: the same bits).
-        let mut color = Vec3A::from(self.env.ambient * ka + mat.emission);
+        // Emission is added unlit (zero adds nothing: the same bits), times
+        // its texture when it has one.
+        let emission = match mat
+            .emission_texture
+            .and_then(|t| scene.textures().get(t.index() as usize))
+        {
+            Some(t) => mat.emission * self.emission_texel(prep, t),
+            None => mat.emission,
+        };
+        let mut color = Vec3A::from(self.env.ambient * ka + emission);
         for (q, quad) in self.light_quads.iter().enumerate() {
             let terms = light_terms(quad, surf.point, nf, ns, view);
             // PERF: the four lights' highlight powers in one pass, no call

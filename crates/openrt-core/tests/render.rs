@@ -498,18 +498,27 @@ fn one_sided_back_faces_are_passed_through_and_front_faces_are_not() {
     }
 }
 
-/// An emitting surface shows its emission unlit, in both modes and with
-/// every backend and packet width alike; a zero emission adds nothing.
+/// An emitting surface shows its emission unlit, times its emission
+/// texture when it has one, in both modes and with every backend and
+/// packet width alike; a zero emission adds nothing.
 #[test]
 fn emission_is_added_unlit_and_the_same_on_every_path() {
     let mut pixels = Vec::new();
-    for emission in [Vec3::new(0.5, 0.25, 0.0), Vec3::ZERO] {
+    let texel = Vec3::new(0.5, 0.5, 0.25);
+    for (emission, textured) in [
+        (Vec3::new(0.5, 0.25, 0.0), false),
+        (Vec3::ZERO, false),
+        (Vec3::new(1.0, 0.5, 0.0), true),
+    ] {
         let mut ctx = Context::new();
+        let emission_texture =
+            textured.then(|| ctx.create_texture(openrt_core::Texture::new(1, 1, vec![texel]).unwrap()));
         let m = ctx
             .create_material(Material {
                 ambient: Vec3::ZERO,
                 diffuse: Vec3::splat(0.5),
                 emission,
+                emission_texture,
                 ..Material::default()
             })
             .unwrap();
@@ -564,7 +573,19 @@ fn emission_is_added_unlit_and_the_same_on_every_path() {
             "every mode and backend: the same bytes"
         );
     }
-    let (lit, dark) = (pixels[0], pixels[2]);
+    let (lit, dark, textured) = (pixels[0], pixels[2], pixels[4]);
     assert!((lit - Vec3::new(0.5, 0.25, 0.0)).length() < 1e-6, "{lit}");
     assert_eq!(dark, Vec3::ZERO);
+    assert!(
+        (textured - Vec3::new(0.5, 0.25, 0.0)).length() < 1e-6,
+        "the emission times its texture: {textured}"
+    );
+    // An emission texture of another context's table is refused.
+    let mut ctx = Context::new();
+    let id = ctx.create_texture(openrt_core::Texture::new(1, 1, vec![texel]).unwrap());
+    let bad = Context::new().create_material(Material {
+        emission_texture: Some(id),
+        ..Material::default()
+    });
+    assert!(bad.is_err(), "{bad:?}");
 }

@@ -559,15 +559,18 @@ impl Builder {
         }
         let mut materials: BTreeMap<&str, MaterialId> = BTreeMap::new();
         for (name, m) in &f.materials {
-            let texture = match &m.texture {
-                None => None,
-                Some(t) => Some(*textures.get(t).ok_or_else(|| SceneError::Undefined {
-                    path: self.path.clone(),
-                    what: "texture",
-                    name: t.clone(),
-                    by: format!("material '{name}'"),
-                })?),
+            let texture_of = |t: &Option<String>| -> Result<Option<openrt_core::TextureId>, SceneError> {
+                match t {
+                    None => Ok(None),
+                    Some(t) => Ok(Some(*textures.get(t).ok_or_else(|| SceneError::Undefined {
+                        path: self.path.clone(),
+                        what: "texture",
+                        name: t.clone(),
+                        by: format!("material '{name}'"),
+                    })?)),
+                }
             };
+            let (texture, emission_texture) = (texture_of(&m.texture)?, texture_of(&m.emission_texture)?);
             let id = ctx
                 .create_material(Material {
                     ambient: v3(m.ambient),
@@ -578,6 +581,7 @@ impl Builder {
                     transmission: m.transmission,
                     ior: m.ior,
                     texture,
+                    emission_texture,
                     one_sided: m.one_sided,
                 })
                 .map_err(self.core())?;

@@ -194,6 +194,8 @@ pub struct MaterialDesc {
     pub ior: f32,
     /// Name of a texture in `textures`.
     pub texture: Option<String>,
+    /// Name of a texture in `textures` multiplying `emission`.
+    pub emission_texture: Option<String>,
     /// One-sided surface.
     pub one_sided: bool,
 }
@@ -209,6 +211,7 @@ impl Default for MaterialDesc {
             transmission: 0.0,
             ior: 1.0,
             texture: None,
+            emission_texture: None,
             one_sided: false,
         }
     }

@@ -472,10 +472,11 @@ fn base_colour_textures_are_read_with_their_samplers_wrap_modes() {
 }
 
 /// Blender's exporter writes KHR_texture_transform (mapping nodes) and
-/// KHR_materials_emissive_strength (emission above 1): both are read, and
-/// an optional extension that is not read is a warning naming it.
+/// KHR_materials_emissive_strength (emission above 1): both are read, as is
+/// the emissive texture, and an optional extension that is not read is a
+/// warning naming it.
 #[test]
-fn texture_transforms_and_emissive_strength_are_read() {
+fn texture_transforms_emissive_textures_and_strength_are_read() {
     let dir = tempfile::tempdir().unwrap();
     image::RgbImage::from_fn(2, 2, |x, y| image::Rgb([x as u8 * 200, y as u8 * 200, 10]))
         .save(dir.path().join("tex.png"))
@@ -495,6 +496,8 @@ fn texture_transforms_and_emissive_strength_are_read() {
             "pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {
                 "offset": offset, "rotation": rotation, "scale": scale}}}},
             "emissiveFactor": [0.5, 0.25, 0.0],
+            "emissiveTexture": {"index": 0, "extensions": {"KHR_texture_transform": {
+                "offset": offset, "rotation": rotation, "scale": scale}}},
             "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}
         }],
         "textures": [{"source": 0}],
@@ -518,6 +521,10 @@ fn texture_transforms_and_emissive_strength_are_read() {
     }
     let m = scene.materials().iter().find(|m| m.texture.is_some()).unwrap();
     assert_eq!(m.emission, Vec3::new(2.0, 1.0, 0.0), "the factor times the strength");
+    assert_eq!(
+        m.emission_texture, m.texture,
+        "the emissive texture: the same image and sampler"
+    );
     let w: Vec<String> = p.warnings().iter().map(ToString::to_string).collect();
     assert!(
         w.len() == 1 && w[0].contains("EXT_made_up") && w[0].contains("extensionsUsed"),

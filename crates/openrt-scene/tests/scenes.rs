@@ -128,6 +128,28 @@ fn a_missing_texture_names_the_file() {
 }
 
 #[test]
+fn emission_textures_are_read_and_an_unknown_one_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("glow.ppm"), b"P6\n1 1\n255\n\xff\x80\x00").unwrap();
+    let text = r#"(version: 1, textures: {"glow": "glow.ppm"},
+                  materials: {"m": (emission: (1.0, 1.0, 1.0), emission_texture: Some("glow"))},
+                  objects: {}, instances: [])"#;
+    let s = load_ron_str(text, &dir.path().join("s.ron")).unwrap_or_else(|e| panic!("{e}"));
+    let scene = s.ctx.scene();
+    let m = scene
+        .materials()
+        .iter()
+        .find(|m| m.emission_texture.is_some())
+        .expect("read");
+    assert_eq!(m.texture, None);
+    let e = err(r#"(version: 1, materials: {"m": (emission_texture: Some("nowhere"))}, objects: {}, instances: [])"#);
+    assert!(
+        matches!(e, SceneError::Undefined { .. }) && e.to_string().contains("nowhere"),
+        "{e}"
+    );
+}
+
+#[test]
 fn a_corrupt_texture_is_an_error_not_a_panic() {
     let dir = std::env::temp_dir().join(format!("openrt-scene-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -708,26 +708,7 @@ fn convert_materials(
                         "a base colour texture on TEXCOORD_1 or above is read through TEXCOORD_0",
                     );
                 }
-                let sampler = info.texture().sampler();
-                let wrap = |w: gltf::texture::WrappingMode| match w {
-                    gltf::texture::WrappingMode::Repeat => TextureWrap::Repeat,
-                    gltf::texture::WrappingMode::ClampToEdge => TextureWrap::ClampToEdge,
-                    gltf::texture::WrappingMode::MirroredRepeat => TextureWrap::MirroredRepeat,
-                };
-                let (u, v) = (wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
-                // One texture per image and addressing (images shared by
-                // samplers of the same modes are read once).
-                let image = info.texture().source();
-                if let Some(&t) = images.get(&(image.index(), u, v)) {
-                    Some(t)
-                } else {
-                    let t = convert_image(path, base, &image, buffers, warn)?;
-                    let id = t.map(|t| ctx.create_texture(t.with_wrap(u, v)));
-                    if let Some(id) = id {
-                        images.insert((image.index(), u, v), id);
-                    }
-                    id
-                }
+                read_texture(path, base, buffers, ctx, &mut images, &info.texture(), warn)?
             }
         };
         if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
@@ -743,9 +724,21 @@ fn convert_materials(
                 "emissiveFactor times emissive_strength is not finite and non-negative",
             ));
         }
-        if m.emissive_texture().is_some() {
-            warn.add(&at, "emissiveTexture is not read: the emissiveFactor is used alone");
-        }
+        let emission_texture = match m.emissive_texture() {
+            None => None,
+            Some(info) => {
+                let transform =
+                    |t: Option<gltf::texture::TextureTransform<'_>>| t.map(|t| (t.offset(), t.rotation(), t.scale()));
+                let base_transform = pbr.base_color_texture().and_then(|b| transform(b.texture_transform()));
+                if info.tex_coord() != 0 || transform(info.texture_transform()) != base_transform {
+                    warn.add(
+                        &at,
+                        "an emissiveTexture on other texture coordinates than the base colour's (TEXCOORD_0 and its transform) is read through those",
+                    );
+                }
+                read_texture(path, base, buffers, ctx, &mut images, &info.texture(), warn)?
+            }
+        };
         // KHR_materials_transmission: the transmitted share refracts with
         // KHR_materials_ior's index (1.5 when not given, as that extension says).
         let transmission = m
@@ -770,6 +763,7 @@ fn convert_materials(
             specular: Vec3::splat(0.04).lerp(rgb, metal) * shine,
             shininess: (2.0 / (rough * rough * rough * rough).max(1e-4) - 2.0).clamp(1.0, 10_000.0),
             texture,
+            emission_texture,
             one_sided: !m.double_sided(),
             emission,
         };
@@ -818,6 +812,37 @@ fn convert_image(
         .map(|p| Vec3::new(f32::from(p[0]), f32::from(p[1]), f32::from(p[2])) / 255.0)
         .collect();
     Ok(Texture::new(data.width as usize, data.height as usize, texels))
+}
+
+/// A texture of the file as a context texture: its image with its
+/// sampler's wrap modes, one texture per image and addressing (`images`:
+/// those made so far); `None` for an image that is not read (a warning).
+fn read_texture(
+    path: &Path,
+    base: Option<&Path>,
+    buffers: &[gltf::buffer::Data],
+    ctx: &mut Context,
+    images: &mut HashMap<(usize, TextureWrap, TextureWrap), openrt_core::TextureId>,
+    texture: &gltf::Texture<'_>,
+    warn: &mut Warnings<'_>,
+) -> Result<Option<openrt_core::TextureId>, SceneError> {
+    let sampler = texture.sampler();
+    let wrap = |w: gltf::texture::WrappingMode| match w {
+        gltf::texture::WrappingMode::Repeat => TextureWrap::Repeat,
+        gltf::texture::WrappingMode::ClampToEdge => TextureWrap::ClampToEdge,
+        gltf::texture::WrappingMode::MirroredRepeat => TextureWrap::MirroredRepeat,
+    };
+    let (u, v) = (wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
+    let image = texture.source();
+    if let Some(&t) = images.get(&(image.index(), u, v)) {
+        return Ok(Some(t));
+    }
+    let t = convert_image(path, base, &image, buffers, warn)?;
+    let id = t.map(|t| ctx.create_texture(t.with_wrap(u, v)));
+    if let Some(id) = id {
+        images.insert((image.index(), u, v), id);
+    }
+    Ok(id)
 }
 
 /// The KHR_texture_transform of a primitive's base colour texture as a
