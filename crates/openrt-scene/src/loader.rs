@@ -268,15 +268,17 @@ pub enum RonScene {
     Scene(Box<LoadedScene>),
     /// A wrapper around a BART scene.
     Bart(Box<AffPlayer>),
+    /// A wrapper around a glTF scene.
+    Gltf(Box<crate::GltfPlayer>),
 }
 
 /// Reads and builds a RON scene file (not a BART wrapper: see [`load_ron_any`]).
 pub fn load_ron(path: &Path) -> Result<LoadedScene, SceneError> {
     match load_ron_any(path)? {
         RonScene::Scene(s) => Ok(*s),
-        RonScene::Bart(_) => Err(SceneError::Invalid {
+        RonScene::Bart(_) | RonScene::Gltf(_) => Err(SceneError::Invalid {
             path: path.to_path_buf(),
-            what: "this file wraps a BART scene: open it with ScenePlayer::open".into(),
+            what: "this file wraps a BART or glTF scene: open it with ScenePlayer::open".into(),
         }),
     }
 }
@@ -292,6 +294,22 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
         ),
     })?;
     let file = parse_ron(&text, path)?;
+    if let Some(g) = &file.gltf {
+        if file.bart.is_some() || !file.objects.is_empty() || !file.instances.is_empty() || !file.generators.is_empty()
+        {
+            return Err(SceneError::Invalid {
+                path: path.to_path_buf(),
+                what:
+                    "a glTF wrapper ('gltf') cannot also wrap a BART scene or define objects, instances or generators"
+                        .into(),
+            });
+        }
+        let mut player = load_gltf(path, &g.path, g.scene, g.animation.as_deref(), g.camera)?;
+        // Objects already built get the scene's structure at the next commit
+        // (deforming ones keep theirs: `GLTF_DEFORMING_ACCEL`).
+        player.ctx.set_accel(file.accel);
+        return Ok(RonScene::Gltf(Box::new(player)));
+    }
     if let Some(b) = &file.bart {
         if !file.objects.is_empty() || !file.instances.is_empty() || !file.generators.is_empty() {
             return Err(SceneError::Invalid {
@@ -358,6 +376,25 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
     )))
 }
 
+/// The glTF file `file` (relative to the RON file `ron`) with a RON file's
+/// choices of scene, animation (`None`: the first) and camera.
+fn load_gltf(
+    ron: &Path,
+    file: &str,
+    scene: Option<usize>,
+    animation: Option<&str>,
+    camera: Option<usize>,
+) -> Result<crate::GltfPlayer, SceneError> {
+    let options = crate::GltfOptions {
+        scene,
+        animation: animation.map_or(crate::GltfAnimation::First, |a| {
+            a.parse().unwrap_or(crate::GltfAnimation::First)
+        }),
+        camera,
+    };
+    crate::GltfPlayer::load_with(&ron.parent().unwrap_or(Path::new(".")).join(file), &options)
+}
+
 fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
     let file: SceneFile = ron::from_str(text).map_err(|e| SceneError::Parse {
         path: path.to_path_buf(),
@@ -375,6 +412,7 @@ fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
     let v2_only = file.animation.is_some()
         || file.camera_keys.is_some()
         || file.bart.is_some()
+        || file.gltf.is_some()
         || !file.generators.is_empty()
         || file.instances.iter().any(|i| i.keys.is_some())
         || file.objects.values().any(|o| {
@@ -386,7 +424,8 @@ fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
     if file.version == 1 && v2_only {
         return Err(SceneError::Invalid {
             path: path.to_path_buf(),
-            what: "animation, camera keys, BART wrappers, generators, Morph, Obj and Gltf need 'version: 2'".into(),
+            what: "animation, camera keys, BART and glTF wrappers, generators, Morph, Obj and Gltf need 'version: 2'"
+                .into(),
         });
     }
     Ok(file)
@@ -395,10 +434,10 @@ fn parse_ron(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
 /// Builds a RON scene from text; `path` names it in errors and anchors relative paths.
 pub fn load_ron_str(text: &str, path: &Path) -> Result<LoadedScene, SceneError> {
     let file = parse_ron(text, path)?;
-    if file.bart.is_some() {
+    if file.bart.is_some() || file.gltf.is_some() {
         return Err(SceneError::Invalid {
             path: path.to_path_buf(),
-            what: "BART wrappers must be opened from a file".into(),
+            what: "BART and glTF wrappers must be opened from a file".into(),
         });
     }
     Builder {
@@ -621,18 +660,10 @@ impl Builder {
                 animation,
             } = o
             {
-                let options = crate::GltfOptions {
-                    scene: *scene,
-                    animation: animation.as_deref().map_or(crate::GltfAnimation::First, |a| {
-                        a.parse().unwrap_or(crate::GltfAnimation::First)
-                    }),
-                    camera: None,
-                };
-                let file = self.path.parent().unwrap_or(Path::new(".")).join(path);
                 let mut g = GltfObject {
                     id,
                     material: material(m, name)?,
-                    player: Box::new(crate::GltfPlayer::load_with(&file, &options)?),
+                    player: Box::new(load_gltf(&self.path, path, *scene, animation.as_deref(), None)?),
                     triangles: 0,
                 };
                 g.define(&mut ctx, start)?;

@@ -62,6 +62,7 @@ impl ScenePlayer {
             Some("ron") => Ok(match load_ron_any(path)? {
                 RonScene::Scene(s) => Self::Ron(s),
                 RonScene::Bart(a) => Self::Aff(a),
+                RonScene::Gltf(g) => Self::Gltf(g),
             }),
             _ => Err(SceneError::Invalid {
                 path: path.to_path_buf(),

@@ -53,6 +53,9 @@ pub struct SceneFile {
     /// (v2) Play a BART AFF scene instead (all other fields must be left out).
     #[serde(default)]
     pub bart: Option<BartDesc>,
+    /// (v2) Play a glTF 2.0 file instead (relative to the scene file).
+    #[serde(default)]
+    pub gltf: Option<GltfDesc>,
     /// (v2) Procedural content added to the scene.
     #[serde(default)]
     pub generators: Vec<GeneratorDesc>,
@@ -97,6 +100,25 @@ pub struct BartDesc {
     /// Seed of the generated animart.
     #[serde(default)]
     pub seed: u64,
+}
+
+/// (v2) A whole glTF scene played through the RON file: its nodes,
+/// cameras, lights, materials and animation, as `openrt play file.glb`
+/// with these choices.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GltfDesc {
+    /// The `.gltf` or `.glb` file, relative to the scene file.
+    pub path: String,
+    /// `scenes[N]` (default: the file's default scene, else its first).
+    #[serde(default)]
+    pub scene: Option<usize>,
+    /// The animation: an index, a name, `"all"` or `"none"` (default: the first).
+    #[serde(default)]
+    pub animation: Option<String>,
+    /// `cameras[N]` (default: the first perspective camera, else one framing the scene).
+    #[serde(default)]
+    pub camera: Option<usize>,
 }
 
 /// (v2) Procedural content.

@@ -495,3 +495,50 @@ fn a_gltf_object_in_a_ron_scene_plays_its_file_and_moves_with_its_instance() {
         .expect("a missing glTF file is an error");
     assert!(e.to_string().contains("nowhere.glb"), "{e}");
 }
+
+/// A RON file can wrap a whole glTF scene (its cameras, lights, materials
+/// and animation), as it wraps BART scenes: the same player as opening the
+/// file itself with the same choices.
+#[test]
+fn a_ron_file_wraps_a_whole_gltf_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    std::fs::copy(root.join("scenes/walker.glb"), dir.path().join("walker.glb")).unwrap();
+    let ron = dir.path().join("wrap.ron");
+    let write = |text: &str| std::fs::write(&ron, text).unwrap();
+    write(r#"(version: 2, gltf: Some((path: "walker.glb", scene: Some(0), animation: Some("walk"))), accel: Bvh)"#);
+    let mut wrapped = match ScenePlayer::open(Some(&ron)).unwrap_or_else(|e| panic!("{e}")) {
+        ScenePlayer::Gltf(g) => *g,
+        _ => panic!("a glTF wrapper opens as a glTF player"),
+    };
+    let mut direct = GltfPlayer::load(&root.join("scenes/walker.glb")).unwrap();
+    assert_eq!(wrapped.frames(), direct.frames());
+    assert_eq!(wrapped.motion_classes(), direct.motion_classes());
+    wrapped.set_time(0.7).unwrap();
+    direct.set_time(0.7).unwrap();
+    assert_eq!(world_vertices(&wrapped), world_vertices(&direct), "the same pose");
+    assert_eq!(wrapped.camera(0.7), direct.camera(0.7));
+    // The wrapper's choices and refusals.
+    write(r#"(version: 2, gltf: Some((path: "walker.glb", animation: Some("none"))))"#);
+    assert_eq!(ScenePlayer::open(Some(&ron)).unwrap().frames(), 1, "at rest");
+    for (text, needle) in [
+        (r#"(version: 1, gltf: Some((path: "walker.glb")))"#, "version: 2"),
+        (r#"(version: 2, gltf: Some((path: "nowhere.glb")))"#, "nowhere.glb"),
+        (
+            r#"(version: 2, gltf: Some((path: "walker.glb", camera: Some(7))))"#,
+            "--camera 7",
+        ),
+        (
+            r#"(version: 2, gltf: Some((path: "walker.glb")), objects: {"b": Box(min: (0.0, 0.0, 0.0), max: (1.0, 1.0, 1.0))})"#,
+            "cannot also",
+        ),
+    ] {
+        write(text);
+        let e = ScenePlayer::open(Some(&ron))
+            .err()
+            .unwrap_or_else(|| panic!("accepted: {text}"));
+        assert!(e.to_string().contains(needle), "{text}: {e}");
+    }
+    write(r#"(version: 2, gltf: Some((path: "walker.glb")))"#);
+    assert!(openrt_scene::load_ron(&ron).is_err(), "load_ron names the wrapper");
+}
