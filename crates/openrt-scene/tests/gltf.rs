@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use glam::{Quat, Vec2, Vec3};
 use openrt_accel::Ray;
 use openrt_core::TextureWrap;
-use openrt_scene::{GltfPlayer, SceneError, ScenePlayer};
+use openrt_scene::{GltfOptions, GltfPlayer, SceneError, ScenePlayer};
 use serde_json::{Value, json};
 
 #[path = "common/gltf_builder.rs"]
@@ -529,6 +529,102 @@ fn texture_transforms_emissive_textures_and_strength_are_read() {
     assert!(
         w.len() == 1 && w[0].contains("EXT_made_up") && w[0].contains("extensionsUsed"),
         "{w:?}"
+    );
+}
+
+/// KHR_materials_unlit (Blender writes it for emission and background
+/// shaders): the base colour shown as it is, lit by nothing: an emission
+/// of the base colour, every reflectance zero; the image is that colour.
+#[test]
+fn unlit_materials_show_their_base_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Builder::default();
+    let meshes = quad(&mut b);
+    let doc = json!({
+        "extensionsUsed": ["KHR_materials_unlit"],
+        "extensionsRequired": ["KHR_materials_unlit"],
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, 2.0]}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.01}}],
+        "meshes": meshes,
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.75, 0.5, 0.25, 1.0]},
+                       "extensions": {"KHR_materials_unlit": {}}}],
+    });
+    let path = b.write_gltf(dir.path(), "unlit", doc);
+    let p = player(&path);
+    let scene = p.ctx.scene();
+    let m = &scene.materials()[scene.instances()[0].geometry.shading.materials[0].index() as usize];
+    assert_eq!(m.emission, Vec3::new(0.75, 0.5, 0.25));
+    assert_eq!((m.ambient, m.diffuse, m.specular), (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO));
+    let settings = openrt_core::RenderSettings {
+        width: 8,
+        height: 8,
+        ..openrt_core::RenderSettings::default()
+    };
+    let (img, _) = openrt_core::Renderer::new(1)
+        .unwrap()
+        .render(&scene, &p.env, &p.camera(0.0), &settings)
+        .unwrap();
+    let centre = img.pixels[4 * 8 + 4];
+    assert!((centre - Vec3::new(0.75, 0.5, 0.25)).length() < 1e-6, "{centre}");
+    assert!(p.warnings().is_empty(), "{:?}", p.warnings());
+}
+
+/// Valid files the `gltf` crate alone refuses, as Blender's exporter writes
+/// them (its round-trip tests hold each): a scene without `nodes`, an
+/// application-specific attribute, a KHR_animation_pointer channel (no
+/// target node). They load, with a warning for what is not read.
+#[test]
+fn valid_files_the_crate_refuses_are_mended() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Builder::default();
+    let pos = b.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3", 3);
+    let pressure = b.floats(&[1.0, 2.0, 3.0], "SCALAR", 1);
+    let input = b.floats(&[0.0, 1.0], "SCALAR", 1);
+    let output = b.floats(&[0.0, 0.0, 0.0, 2.0, 0.0, 0.0], "VEC3", 3);
+    let colour = b.floats(&[1.0, 1.0, 1.0, 0.0, 0.0, 1.0], "VEC3", 3);
+    let doc = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0]}, {"name": "empty"}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos, "_PRESSURE": pressure}}]}],
+        "animations": [{"channels": [
+            {"sampler": 0, "target": {"node": 0, "path": "translation"}},
+            {"sampler": 1, "target": {"path": "pointer", "extensions": {"KHR_animation_pointer": {"pointer": "/materials/0/emissiveFactor"}}}}
+        ], "samplers": [{"input": input, "output": output}, {"input": input, "output": colour}]}],
+    });
+    let path = b.write_gltf(dir.path(), "mended", doc.clone());
+    // The same as GLB: mended from its JSON chunk, its binary chunk kept.
+    let glb = player(&b.write_glb(dir.path(), "mended", doc));
+    assert_eq!(glb.warnings().len(), 2, "{:?}", glb.warnings());
+    assert_eq!(glb.ctx.scene().instances().len(), 1);
+    let mut p = player(&path);
+    let w: Vec<String> = p.warnings().iter().map(ToString::to_string).collect();
+    assert!(
+        w.iter()
+            .any(|w| w.contains("meshes[0].primitives[0]") && w.contains("not read")),
+        "{w:?}"
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.contains("animations[0]") && w.contains("KHR_animation_pointer")),
+        "{w:?}"
+    );
+    // The node channel still plays.
+    p.set_time(1.0).unwrap();
+    assert!((centres(&p)[0].x - 2.5).abs() < 1e-5, "{:?}", centres(&p));
+    let empty = GltfPlayer::load_with(
+        &path,
+        &GltfOptions {
+            scene: Some(1),
+            ..GltfOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        empty.ctx.scene().instances().is_empty(),
+        "the empty scene draws nothing"
     );
 }
 

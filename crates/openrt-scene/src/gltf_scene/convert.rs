@@ -304,10 +304,26 @@ fn load_checked(
     // The `gltf` crate (1.4) panics on some out-of-range indices and on
     // empty accessors, inside its own validation and readers: those are
     // checked here first, on the JSON as parsed, before it validates the rest.
-    let raw = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(path, "", e))?;
+    let (raw, mut notes) = parse_lenient(path, bytes)?;
     precheck(path, raw.document.as_json())?;
     let blob = raw.blob;
-    let document = gltf::Document::from_json(raw.document.into_json()).map_err(|e| invalid(path, "", e))?;
+    let mut root = raw.document.into_json();
+    // Application-specific attributes (`_NAME`), which the crate's
+    // validation refuses, are not read.
+    for (m, mesh) in root.meshes.iter_mut().enumerate() {
+        for (k, prim) in mesh.primitives.iter_mut().enumerate() {
+            let before = prim.attributes.len();
+            prim.attributes
+                .retain(|name, _| !matches!(name, gltf::json::validation::Checked::Invalid));
+            if prim.attributes.len() < before {
+                notes.push((
+                    format!("meshes[{m}].primitives[{k}]"),
+                    "attributes of unknown names (such as application-specific `_NAME` ones) are not read".to_string(),
+                ));
+            }
+        }
+    }
+    let document = gltf::Document::from_json(root).map_err(|e| invalid(path, "", e))?;
     let gltf = gltf::Gltf { document, blob };
     let doc = &gltf.document;
     for ext in doc.extensions_required() {
@@ -323,6 +339,9 @@ fn load_checked(
     }
     let buffers = gltf::import_buffers(doc, base, gltf.blob.clone()).map_err(|e| invalid(path, "buffers", e))?;
     let mut warn = Warnings { path, list: Vec::new() };
+    for (at, msg) in &notes {
+        warn.add(at, msg);
+    }
     for ext in doc.extensions_used() {
         if !GLTF_SUPPORTED_REQUIRED.contains(&ext) {
             warn.add(
@@ -755,17 +774,35 @@ fn convert_materials(
             ));
         }
         let shine = (1.0 - rough) * (1.0 - rough);
-        let material = Material {
-            ambient: rgb,
-            transmission,
-            ior,
-            diffuse: rgb * (1.0 - metal) * (1.0 - transmission),
-            specular: Vec3::splat(0.04).lerp(rgb, metal) * shine,
-            shininess: (2.0 / (rough * rough * rough * rough).max(1e-4) - 2.0).clamp(1.0, 10_000.0),
-            texture,
-            emission_texture,
-            one_sided: !m.double_sided(),
-            emission,
+        // KHR_materials_unlit: the base colour as it is, lit by nothing and
+        // reflecting nothing: an emission of the base colour (times its
+        // texture), every reflectance zero.
+        let material = if m.unlit() {
+            Material {
+                ambient: Vec3::ZERO,
+                diffuse: Vec3::ZERO,
+                specular: Vec3::ZERO,
+                shininess: 0.0,
+                emission: rgb,
+                emission_texture: texture,
+                texture: None,
+                transmission: 0.0,
+                ior: 1.0,
+                one_sided: !m.double_sided(),
+            }
+        } else {
+            Material {
+                ambient: rgb,
+                transmission,
+                ior,
+                diffuse: rgb * (1.0 - metal) * (1.0 - transmission),
+                specular: Vec3::splat(0.04).lerp(rgb, metal) * shine,
+                shininess: (2.0 / (rough * rough * rough * rough).max(1e-4) - 2.0).clamp(1.0, 10_000.0),
+                texture,
+                emission_texture,
+                one_sided: !m.double_sided(),
+                emission,
+            }
         };
         out.push(ctx.create_material(material).map_err(|e| invalid(path, &at, e))?);
     }
@@ -843,6 +880,75 @@ fn read_texture(
         images.insert((image.index(), u, v), id);
     }
     Ok(id)
+}
+
+/// Parses a `.gltf` or `.glb` without the `gltf` crate's validation. Valid
+/// files that the crate (1.4) cannot parse are mended first, on the JSON:
+/// a scene without `nodes` gets an empty list; animation channels without
+/// a target node (KHR_animation_pointer) are dropped, with a note for the
+/// warnings. A file that needs none of this is parsed as it is (its errors
+/// keep their line and column).
+fn parse_lenient(path: &Path, bytes: &[u8]) -> Result<(gltf::Gltf, Vec<(String, String)>), SceneError> {
+    let direct = gltf::Gltf::from_slice_without_validation(bytes);
+    let Err(first) = direct else {
+        return Ok((direct.map_err(|e| invalid(path, "", e))?, Vec::new()));
+    };
+    if bytes.starts_with(b"glTF") {
+        let Ok(glb) = gltf::binary::Glb::from_slice(bytes) else {
+            return Err(invalid(path, "", first));
+        };
+        let json = glb.json.into_owned();
+        return mend(path, &json, glb.bin.map(std::borrow::Cow::into_owned), first);
+    }
+    mend(path, bytes, None, first)
+}
+
+/// [`parse_lenient`]'s mending of the JSON `json`; `first` is the error of
+/// the unmended parse, reported when mending changes nothing.
+fn mend(
+    path: &Path,
+    json: &[u8],
+    blob: Option<Vec<u8>>,
+    first: gltf::Error,
+) -> Result<(gltf::Gltf, Vec<(String, String)>), SceneError> {
+    let Ok(mut v) = serde_json::from_slice::<serde_json::Value>(json) else {
+        return Err(invalid(path, "", first));
+    };
+    let mut notes = Vec::new();
+    for scene in v.get_mut("scenes").and_then(|s| s.as_array_mut()).into_iter().flatten() {
+        if let Some(o) = scene.as_object_mut() {
+            o.entry("nodes").or_insert_with(|| serde_json::json!([]));
+        }
+    }
+    for (a, anim) in v
+        .get_mut("animations")
+        .and_then(|s| s.as_array_mut())
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
+        if let Some(channels) = anim.get_mut("channels").and_then(|c| c.as_array_mut()) {
+            let before = channels.len();
+            channels.retain(|c| c.get("target").and_then(|t| t.get("node")).is_some());
+            if channels.len() < before {
+                notes.push((
+                    format!("animations[{a}]"),
+                    format!(
+                        "{} channels without a target node (KHR_animation_pointer) are not played",
+                        before - channels.len()
+                    ),
+                ));
+            }
+        }
+    }
+    let root: gltf::json::Root = serde_json::from_value(v).map_err(|_| invalid(path, "", &first))?;
+    Ok((
+        gltf::Gltf {
+            document: gltf::Document::from_json_without_validation(root),
+            blob,
+        },
+        notes,
+    ))
 }
 
 /// The KHR_texture_transform of a primitive's base colour texture as a

@@ -42,6 +42,7 @@ pub const GLTF_SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_emissive_strength",
     "KHR_texture_transform",
+    "KHR_materials_unlit",
 ];
 
 /// The structure a deforming (skinned or morphed) object gets unless
