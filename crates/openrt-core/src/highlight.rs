@@ -79,6 +79,15 @@ pub(crate) fn highlight_powers(rdv: f32x4, lit: u32, s: f32, floor: f32) -> [f32
 #[must_use]
 #[inline]
 pub(crate) fn highlight_power(x: f32x4, s: f32) -> f32x4 {
+    highlight_power_lanes(x, f32x4::splat(s))
+}
+
+/// [`highlight_power`] with an exponent per lane (the lane-parallel light
+/// loop's hits of different materials): lane `i` is `max(x_i, 0)^s_i`, the
+/// same operations as with one exponent.
+#[must_use]
+#[inline]
+pub(crate) fn highlight_power_lanes(x: f32x4, s: f32x4) -> f32x4 {
     // PERF: no selects on the common path (an SSE2 select is three
     // operations): the mantissa is centred by integer arithmetic, the
     // exponent clamped by `minps`/`maxps`, and NaN or non-positive bases
@@ -90,7 +99,7 @@ pub(crate) fn highlight_power(x: f32x4, s: f32) -> f32x4 {
     } else {
         log2_normal(x)
     };
-    let y = (f32x4::splat(s) * log2x)
+    let y = (s * log2x)
         .fast_max(f32x4::splat(LOWEST_EXPONENT))
         .fast_min(f32x4::splat(HIGHEST_EXPONENT));
     // 2^y = 2^n 2^f, n = y rounded to even, |f| <= 1/2: 2^f by a degree-6

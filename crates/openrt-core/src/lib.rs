@@ -82,6 +82,7 @@ mod ids;
 mod image_file;
 mod instance;
 mod light;
+mod light_loop;
 mod light_quad;
 mod limits;
 mod material;

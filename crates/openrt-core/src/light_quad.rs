@@ -56,26 +56,76 @@ pub(crate) fn light_quads(lights: &[PointLight]) -> Vec<LightQuad> {
 /// `ns`, unit direction to the eye `view`) for the lights of `q`.
 #[inline]
 pub(crate) fn light_terms(q: &LightQuad, p: Vec3, nf: Vec3, ns: Vec3, view: Vec3) -> LightTerms {
+    let s = |v: Vec3| Lanes::splat(v);
+    let (ok, ndl, rdv) = terms(&Lanes { x: q.x, y: q.y, z: q.z }, &s(p), &s(nf), &s(ns), &s(view));
+    LightTerms {
+        lit: ok.to_bitmask() & q.lanes,
+        ndl: ndl.to_array(),
+        rdv: rdv.to_array(),
+    }
+}
+
+/// Three coordinates of four vectors, one lane each.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Lanes {
+    pub x: f32x4,
+    pub y: f32x4,
+    pub z: f32x4,
+}
+
+impl Lanes {
+    /// One vector in every lane.
+    #[inline]
+    pub fn splat(v: Vec3) -> Self {
+        Self {
+            x: f32x4::splat(v.x),
+            y: f32x4::splat(v.y),
+            z: f32x4::splat(v.z),
+        }
+    }
+
+    /// Four vectors, one to a lane.
+    #[inline]
+    pub fn from_vecs(v: [Vec3; 4]) -> Self {
+        Self {
+            x: f32x4::from(v.map(|v| v.x)),
+            y: f32x4::from(v.map(|v| v.y)),
+            z: f32x4::from(v.map(|v| v.z)),
+        }
+    }
+
+    /// The four vectors back, one per lane.
+    #[inline]
+    pub fn to_vecs(self) -> [Vec3; 4] {
+        let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
+        std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
+    }
+}
+
+/// The light terms of four (light, hit) pairs, one to a lane: lights at
+/// `light`, hits at `p` with facing normals `nf`, shading normals `ns` and
+/// unit directions to the eye `view`. Returns the lit lanes as a mask, `n·l`
+/// and `r·v`. Four lights of one hit ([`light_terms`]) and one light of four
+/// hits (the lane-parallel light loop) both come here, so every lane is the
+/// same sequence of operations either way.
+#[inline]
+pub(crate) fn terms(light: &Lanes, p: &Lanes, nf: &Lanes, ns: &Lanes, view: &Lanes) -> (f32x4, f32x4, f32x4) {
     let s = f32x4::splat;
     // The direction to the light, normalized as `Vec3::try_normalize` does:
     // `((x*x + y*y) + z*z)`, a square root, `1 / len`, then three products.
-    let (tx, ty, tz) = (q.x - s(p.x), q.y - s(p.y), q.z - s(p.z));
+    let (tx, ty, tz) = (light.x - p.x, light.y - p.y, light.z - p.z);
     let rcp = s(1.0) / (tx * tx + ty * ty + tz * tz).sqrt();
     // `rcp.is_finite() && rcp > 0.0`; a NaN fails both compares.
     let ok = rcp.simd_gt(s(0.0)) & rcp.simd_lt(s(f32::INFINITY));
     let (lx, ly, lz) = (tx * rcp, ty * rcp, tz * rcp);
-    let facing = (lx * s(nf.x) + ly * s(nf.y) + lz * s(nf.z)).simd_gt(s(0.0));
-    let ndl = s(ns.x) * lx + s(ns.y) * ly + s(ns.z) * lz;
+    let facing = (lx * nf.x + ly * nf.y + lz * nf.z).simd_gt(s(0.0));
+    let ndl = ns.x * lx + ns.y * ly + ns.z * lz;
     // `reflect(-l, ns)`: `d - (2 * d·n) * n` with `d = -l`.
     let (dx, dy, dz) = (-lx, -ly, -lz);
-    let k = s(2.0) * (dx * s(ns.x) + dy * s(ns.y) + dz * s(ns.z));
-    let (rx, ry, rz) = (dx - k * s(ns.x), dy - k * s(ns.y), dz - k * s(ns.z));
-    let rdv = rx * s(view.x) + ry * s(view.y) + rz * s(view.z);
-    LightTerms {
-        lit: (ok & facing).to_bitmask() & q.lanes,
-        ndl: ndl.to_array(),
-        rdv: rdv.to_array(),
-    }
+    let k = s(2.0) * (dx * ns.x + dy * ns.y + dz * ns.z);
+    let (rx, ry, rz) = (dx - k * ns.x, dy - k * ns.y, dz - k * ns.z);
+    let rdv = rx * view.x + ry * view.y + rz * view.z;
+    (ok & facing, ndl, rdv)
 }
 
 /// The scalar twin of [`light_terms`] for one light: `Some((n·l, r·v))`

@@ -1,9 +1,10 @@
 //! Whitted ray tracing and the "OpenGL-like" local shading mode.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use openrt_accel::{Ray, lanes_of, sign_groups};
 
 use crate::highlight::highlight_powers;
+use crate::light_loop::{LitHit, light_sum, light_sum_lanes};
 use crate::light_quad::{LightQuad, light_terms};
 use crate::occluder_hint::OccluderHint;
 use crate::phases::{Phase, PhaseClock};
@@ -523,17 +524,21 @@ impl<T: Tracer> Shader<'_, T> {
         depth: u32,
         bounces: &mut Bounces,
     ) -> Vec3 {
+        let hit = self.lit_hit(prep, tex);
+        let whitted = self.mode == RenderMode::Whitted;
+        let color = light_sum(&self.env.lights, &self.light_quads, &hit, |j| whitted && blocked(j));
+        self.bounces(prep, depth, bounces);
+        color
+    }
+
+    /// What the light loop needs of a prepared hit whose texel is `tex`.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn lit_hit(&self, prep: &Prepared, tex: Vec3) -> LitHit {
         let scene = self.scene;
         let surf = &prep.surf;
-        let (d, back, nf, ns, p_out) = (prep.d, prep.back, prep.nf, prep.ns, prep.p_out);
         let mat = &scene.materials()[surf.material.index() as usize];
-        let (ka, kd) = (mat.ambient * tex, mat.diffuse * tex);
-        let view = -d;
         let (highlights, floor) = self.highlights(surf);
-        // PERF: the geometry of four lights at a time (`light_quad.rs`, the
-        // scalar loop's bits); the sums stay in the lights' order, three
-        // channels to a register (`Vec3A`: the same products and sums).
-        let (kd, specular) = (Vec3A::from(kd), Vec3A::from(mat.specular));
         // Emission is added unlit (zero adds nothing: the same bits), times
         // its texture when it has one.
         let emission = match mat
@@ -543,36 +548,33 @@ impl<T: Tracer> Shader<'_, T> {
             Some(t) => mat.emission * self.emission_texel(prep, t),
             None => mat.emission,
         };
-        let mut color = Vec3A::from(self.env.ambient * ka + emission);
-        for (q, quad) in self.light_quads.iter().enumerate() {
-            let terms = light_terms(quad, surf.point, nf, ns, view);
-            // PERF: the four lights' highlight powers in one pass, no call
-            // (`highlight.rs`), and none when every lit light's power would
-            // be exactly zero: its base at most the material's floor
-            // (`zero_power_below`; 0, facing away, when it has none). The
-            // floor made kitchen GL-like frames 1.5-4% faster.
-            let power = if highlights {
-                highlight_powers(wide::f32x4::from(terms.rdv), terms.lit, mat.shininess, floor)
-            } else {
-                [0.0; 4]
-            };
-            for i in lanes_of(terms.lit) {
-                let j = 4 * q + i;
-                if self.mode == RenderMode::Whitted && blocked(j) {
-                    continue;
-                }
-                let mut c = kd * terms.ndl[i].max(0.0);
-                if highlights {
-                    c += specular * power[i];
-                }
-                color += Vec3A::from(self.env.lights[j].color) * c;
-            }
+        LitHit {
+            p: surf.point,
+            nf: prep.nf,
+            ns: prep.ns,
+            view: -prep.d,
+            base: self.env.ambient * (mat.ambient * tex) + emission,
+            kd: mat.diffuse * tex,
+            specular: mat.specular,
+            shininess: mat.shininess,
+            floor,
+            highlights,
         }
-        let color = Vec3::from(color);
+    }
+
+    /// The bounces a prepared hit still traces, written to `bounces`
+    /// (refraction first, each with the weight of its radiance; `None`
+    /// where there is none): Whitted mode below `max_depth` only.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn bounces(&mut self, prep: &Prepared, depth: u32, bounces: &mut Bounces) {
+        let surf = &prep.surf;
+        let (d, back, nf, ns, p_out) = (prep.d, prep.back, prep.nf, prep.ns, prep.p_out);
+        let mat = &self.scene.materials()[surf.material.index() as usize];
         bounces[0] = None;
         bounces[1] = None;
         if self.mode != RenderMode::Whitted || depth >= self.max_depth {
-            return color;
+            return;
         }
         let mut mirror_weight = mat.specular;
         if mat.transmission > 0.0 {
@@ -601,7 +603,6 @@ impl<T: Tracer> Shader<'_, T> {
             self.counts.reflection += 1;
             bounces[1] = Some((mirror_weight, Ray::new(p_out, r, 0.0, f32::INFINITY)));
         }
-        color
     }
 
     /// `true` when hits may trace reflection or refraction rays (Whitted
@@ -679,26 +680,42 @@ impl<T: Tracer> Shader<'_, T> {
             t
         };
         block.lanes = lanes;
-        // Timed, the texels of every lane come first, then the light loop:
-        // two spans per packet rather than two per lane, whose clock reads
-        // would cost more than the lookups they time. Untimed, one pass.
-        let mut texels = [Vec3::ONE; N];
-        if ON {
-            for l in lanes_of(lanes) {
-                if let Some(p) = &preps[l] {
-                    texels[l] = self.texel(p);
-                }
+        // The texels of every lane, then the light loop four lanes at a
+        // time, then each lane's bounces.
+        let mut hits = [LitHit::default(); N];
+        let mut have = 0u32;
+        for l in lanes_of(lanes) {
+            if let Some(p) = &preps[l] {
+                let tex = self.texel(p);
+                hits[l] = self.lit_hit(p, tex);
+                have |= 1 << l;
             }
         }
         let t = self.clock.stop::<ON>(t, Phase::Textures);
+        let whitted = self.mode == RenderMode::Whitted;
+        for (c, chunk) in hits.chunks_exact(4).enumerate() {
+            let bits = (have >> (4 * c)) & 0xf;
+            if bits == 0 {
+                continue;
+            }
+            let Ok(four) = <&[LitHit; 4]>::try_from(chunk) else {
+                continue;
+            };
+            let blocked = |j: usize| {
+                if whitted {
+                    blocked.get(j).map_or(0, |m| (m >> (4 * c)) & 0xf)
+                } else {
+                    0
+                }
+            };
+            let colors = light_sum_lanes(&self.env.lights, four, bits, blocked);
+            for i in lanes_of(bits) {
+                block.color[4 * c + i] = colors[i];
+            }
+        }
         for l in lanes_of(lanes) {
             if let Some(p) = &preps[l] {
-                let blocked = |j: usize| blocked.get(j).is_some_and(|m| m & (1 << l) != 0);
-                block.color[l] = if ON {
-                    self.local_lit(p, texels[l], blocked, depth, &mut block.bounces[l])
-                } else {
-                    self.local_as::<false>(p, blocked, depth, &mut block.bounces[l])
-                };
+                self.bounces(p, depth, &mut block.bounces[l]);
                 block.cones[l] = p.cone;
             } else {
                 block.color[l] = self.env.background;
