@@ -116,6 +116,16 @@ pub(crate) fn highlight_power_lanes(x: f32x4, s: f32x4) -> f32x4 {
     (p * scale) & normal & positive
 }
 
+/// `log2 x` for `x > 1`, four lanes ([`log2_normal`]'s arithmetic, 1e-8
+/// relative; above 127 for infinity), and 0 for `x <= 1` and NaN: the
+/// texture level of detail's logarithm, whose result is only used clamped
+/// to `[0, levels - 1]`, so that every `x <= 1` may give 0.
+#[must_use]
+#[inline]
+pub(crate) fn log2_above_one(x: f32x4) -> f32x4 {
+    log2_normal(x) & x.simd_gt(f32x4::ONE)
+}
+
 /// `log2 x` for positive normal `x` (other lanes: any finite value): the
 /// exponent, and `2 atanh(t) / ln 2` of the mantissa `m` moved to
 /// `[sqrt(1/2), sqrt(2))`, `t = (m - 1) / (m + 1)` (`|t| < 0.172`), by the

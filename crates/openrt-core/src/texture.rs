@@ -5,6 +5,10 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
+mod lanes;
+
+pub(crate) use lanes::{takes_lanes, trilinear_lanes};
+
 /// How a texture coordinate outside `[0, 1]` is addressed, per axis (the
 /// wrap modes of OpenGL and of glTF samplers).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -110,6 +114,18 @@ impl std::str::FromStr for TextureFilter {
     }
 }
 
+/// The four texels of a bilinear lookup and the weights of the second
+/// column and row.
+#[derive(Clone, Copy, Debug)]
+struct Taps {
+    xa: usize,
+    xb: usize,
+    ya: usize,
+    yb: usize,
+    fx: f32,
+    fy: f32,
+}
+
 /// One level of the mipmap chain.
 #[derive(Clone, Debug, PartialEq)]
 struct Level {
@@ -159,6 +175,15 @@ impl Level {
         let top = self.texel(xa, ya).lerp(self.texel(xb, ya), fx);
         let bottom = self.texel(xa, yb).lerp(self.texel(xb, yb), fx);
         top.lerp(bottom, fy)
+    }
+
+    /// The bilinear blend of the four texels at `t`: the products of
+    /// [`Level::bilinear`] (the lane-parallel lookup's last step).
+    #[inline]
+    fn blend(&self, t: Taps) -> Vec3 {
+        let top = self.texel(t.xa, t.ya).lerp(self.texel(t.xb, t.ya), t.fx);
+        let bottom = self.texel(t.xa, t.yb).lerp(self.texel(t.xb, t.yb), t.fx);
+        top.lerp(bottom, t.fy)
     }
 
     /// Bilinear sample with each axis addressed by its mode; `uv` is finite.
