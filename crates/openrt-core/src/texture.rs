@@ -114,16 +114,16 @@ impl std::str::FromStr for TextureFilter {
     }
 }
 
-/// The four texels of a bilinear lookup and the weights of the second
-/// column and row.
+/// The texels of four bilinear lookups, one lane each, and the weights of
+/// the second column and row.
 #[derive(Clone, Copy, Debug)]
 struct Taps {
-    xa: usize,
-    xb: usize,
-    ya: usize,
-    yb: usize,
-    fx: f32,
-    fy: f32,
+    xa: [u32; 4],
+    xb: [u32; 4],
+    ya: [u32; 4],
+    yb: [u32; 4],
+    fx: [f32; 4],
+    fy: [f32; 4],
 }
 
 /// One level of the mipmap chain.
@@ -177,13 +177,15 @@ impl Level {
         top.lerp(bottom, fy)
     }
 
-    /// The bilinear blend of the four texels at `t`: the products of
-    /// [`Level::bilinear`] (the lane-parallel lookup's last step).
-    #[inline]
-    fn blend(&self, t: Taps) -> Vec3 {
-        let top = self.texel(t.xa, t.ya).lerp(self.texel(t.xb, t.ya), t.fx);
-        let bottom = self.texel(t.xa, t.yb).lerp(self.texel(t.xb, t.yb), t.fx);
-        top.lerp(bottom, t.fy)
+    /// The bilinear blend of lane `l`'s four texels in `t`: the products
+    /// of [`Level::bilinear`] (the lane-parallel lookup's last step).
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn blend(&self, t: &Taps, l: usize) -> Vec3 {
+        let (xa, xb, ya, yb) = (t.xa[l] as usize, t.xb[l] as usize, t.ya[l] as usize, t.yb[l] as usize);
+        let top = self.texel(xa, ya).lerp(self.texel(xb, ya), t.fx[l]);
+        let bottom = self.texel(xa, yb).lerp(self.texel(xb, yb), t.fx[l]);
+        top.lerp(bottom, t.fy[l])
     }
 
     /// Bilinear sample with each axis addressed by its mode; `uv` is finite.

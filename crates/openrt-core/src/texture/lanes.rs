@@ -39,7 +39,7 @@ fn wrap4(i: i32x4, n: i32x4) -> i32x4 {
 /// (already wrapped into `[0, 1]`) in levels of `w x h` texels: the
 /// arithmetic of `Level::bilinear`, lane by lane.
 #[inline]
-fn taps4(u: f32x4, v: f32x4, w: i32x4, h: i32x4) -> [Taps; 4] {
+fn taps4(u: f32x4, v: f32x4, w: i32x4, h: i32x4) -> Taps {
     let half = f32x4::splat(0.5);
     let x = u * f32x4::from_i32x4(w) - half;
     let y = v * f32x4::from_i32x4(h) - half;
@@ -50,14 +50,14 @@ fn taps4(u: f32x4, v: f32x4, w: i32x4, h: i32x4) -> [Taps; 4] {
     let one = i32x4::splat(1);
     let (xa, xb) = (wrap4(xi, w).to_array(), wrap4(xi + one, w).to_array());
     let (ya, yb) = (wrap4(yi, h).to_array(), wrap4(yi + one, h).to_array());
-    std::array::from_fn(|i| Taps {
-        xa: xa[i].unsigned_abs() as usize,
-        xb: xb[i].unsigned_abs() as usize,
-        ya: ya[i].unsigned_abs() as usize,
-        yb: yb[i].unsigned_abs() as usize,
-        fx: fx[i],
-        fy: fy[i],
-    })
+    Taps {
+        xa: xa.map(i32::cast_unsigned),
+        xb: xb.map(i32::cast_unsigned),
+        ya: ya.map(i32::cast_unsigned),
+        yb: yb.map(i32::cast_unsigned),
+        fx,
+        fy,
+    }
 }
 
 /// Whether a lookup of `t` at `uv` may take [`trilinear_lanes`]: repeat
@@ -89,15 +89,18 @@ pub(crate) fn trilinear_lanes(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) ->
         |k: usize, a: fn(&Level) -> usize| i32x4::from(levels.map(|l| i32::try_from(a(l[k])).unwrap_or(i32::MAX)));
     let (x, y) = (f32x4::from(uv.map(|c| c.x)), f32x4::from(uv.map(|c| c.y)));
     let (u, v) = (x - floor4(x), y - floor4(y));
-    let taps = [0, 1].map(|k| taps4(u, v, size(k, |l| l.width), size(k, |l| l.height)));
-    std::array::from_fn(|l| {
-        let a = levels[l][0].blend(taps[0][l]);
-        if f[l] == 0.0 || i[l] + 1 >= texs[l].levels.len() {
+    let below = taps4(u, v, size(0, |l| l.width), size(0, |l| l.height));
+    let above = taps4(u, v, size(1, |l| l.width), size(1, |l| l.height));
+    let mut out = [Vec3::ZERO; 4];
+    for (l, o) in out.iter_mut().enumerate() {
+        let a = levels[l][0].blend(&below, l);
+        *o = if f[l] == 0.0 || i[l] + 1 >= texs[l].levels.len() {
             a
         } else {
-            a.lerp(levels[l][1].blend(taps[1][l]), f[l])
-        }
-    })
+            a.lerp(levels[l][1].blend(&above, l), f[l])
+        };
+    }
+    out
 }
 
 #[cfg(test)]
