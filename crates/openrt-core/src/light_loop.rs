@@ -154,21 +154,9 @@ mod tests {
     use super::*;
     use crate::highlight::zero_power_below;
     use crate::light_quad::light_quads;
+    use crate::light_quad::tests::unit;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
-
-    fn unit(rng: &mut SmallRng) -> Vec3 {
-        loop {
-            let v = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            );
-            if let Some(u) = v.try_normalize() {
-                return u;
-            }
-        }
-    }
 
     fn colour(rng: &mut SmallRng) -> Vec3 {
         match rng.random_range(0..4) {

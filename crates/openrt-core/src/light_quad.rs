@@ -139,12 +139,13 @@ pub(crate) fn light_terms_scalar(light: Vec3, p: Vec3, nf: Vec3, ns: Vec3, view:
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
-    fn unit(rng: &mut SmallRng) -> Vec3 {
+    /// A random unit vector (the light loop's tests share it).
+    pub(crate) fn unit(rng: &mut SmallRng) -> Vec3 {
         loop {
             let v = Vec3::new(
                 rng.random_range(-1.0..1.0),
