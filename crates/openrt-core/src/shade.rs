@@ -306,8 +306,7 @@ impl<T: Tracer> Shader<'_, T> {
             cone.width = cone.width_at(cur, h.t);
             // NOTE: the tracer's hits come from this scene, so this never fails.
             let surf = scene.own_surface(cur, h)?;
-            let mat = &scene.materials()[surf.material.index() as usize];
-            if mat.one_sided && surf.geometric_normal.dot(ray.dir) > 0.0 && passes < MAX_PASS_THROUGH {
+            if passes < MAX_PASS_THROUGH && self.passes_through(&surf, ray.dir) {
                 passes += 1;
                 // The ray leaves through the back: move along the normal, the side it goes to.
                 let o = offset_ray_origin(surf.point, surf.geometric_normal, surf.error_scale);
@@ -319,6 +318,55 @@ impl<T: Tracer> Shader<'_, T> {
             }
             break surf;
         };
+        Some(self.prepared(ray, cone, surf))
+    }
+
+    /// Whether a hit on `surf` by a ray of direction `dir` is passed
+    /// through: a one-sided surface seen from the back.
+    #[inline]
+    fn passes_through(&self, surf: &Surface, dir: Vec3) -> bool {
+        let mat = &self.scene.materials()[surf.material.index() as usize];
+        mat.one_sided && surf.geometric_normal.dot(dir) > 0.0
+    }
+
+    /// [`Shader::prepare`] of a packet's `lanes` into `preps`: the surfaces
+    /// four lanes at a time ([`Scene::own_surfaces`]); a lane that passes
+    /// through a one-sided surface goes on alone.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn prepare_lanes<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        cones: &[Cone; N],
+        hits: &[Option<SceneHit>; N],
+        lanes: u32,
+        preps: &mut [Option<Prepared>; N],
+    ) {
+        for c in 0..N / 4 {
+            let bits = (lanes >> (4 * c)) & 0xf;
+            if bits == 0 {
+                continue;
+            }
+            let hit = |i: usize| hits[4 * c + i].as_ref().filter(|_| bits & (1 << i) != 0);
+            let four = std::array::from_fn(|i| &rays[4 * c + i]);
+            self.scene.own_surfaces(four, std::array::from_fn(hit), |i, surf| {
+                let l = 4 * c + i;
+                preps[l] = if self.passes_through(&surf, rays[l].dir) {
+                    self.prepare(&rays[l], cones[l], hit(i))
+                } else {
+                    let mut cone = cones[l];
+                    cone.width = cone.width_at(&rays[l], hits[l].as_ref().map_or(0.0, |h| h.t));
+                    Some(self.prepared(&rays[l], cone, surf))
+                };
+            });
+        }
+    }
+
+    /// The rest of [`Shader::prepare`] once the surface is found: normals
+    /// facing the ray, the origin of rays leaving it and the silent lights.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn prepared(&self, ray: &Ray, cone: Cone, surf: Surface) -> Prepared {
         let d = ray.dir.normalize();
         // Normals facing the incoming ray.
         let back = surf.geometric_normal.dot(d) > 0.0;
@@ -343,7 +391,7 @@ impl<T: Tracer> Shader<'_, T> {
         } else {
             0
         };
-        Some(Prepared {
+        Prepared {
             surf,
             d,
             back,
@@ -352,7 +400,7 @@ impl<T: Tracer> Shader<'_, T> {
             p_out,
             cone,
             silent,
-        })
+        }
     }
 
     /// The lights (of the first 64) that add exactly nothing to the colour
@@ -681,9 +729,7 @@ impl<T: Tracer> Shader<'_, T> {
         let t = self.clock.stop::<ON>(t, query_phase(depth));
         // PERF: filled in place (`from_fn` moved each lane's result twice).
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
-        for l in lanes_of(lanes) {
-            preps[l] = self.prepare(&rays[l], cones[l], hits[l].as_ref());
-        }
+        self.prepare_lanes(rays, cones, &hits, lanes, &mut preps);
         let t = self.clock.stop::<ON>(t, Phase::Surface);
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
