@@ -11,11 +11,11 @@
 
 use glam::{Vec3, Vec3A};
 use openrt_accel::lanes_of;
-use wide::{bytemuck, f32x4, i32x4};
+use wide::f32x4;
 
 use crate::PointLight;
 use crate::highlight::{highlight_power_lanes, highlight_powers};
-use crate::light_quad::{Lanes, LightQuad, light_terms, terms};
+use crate::light_quad::{Lanes, LightQuad, light_terms, mask_of, terms};
 
 /// What the light loop needs of one hit.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -84,13 +84,6 @@ pub(crate) fn light_sum(
     Vec3::from(color)
 }
 
-/// A lane mask (all bits set) for each bit of `bits`' low four.
-#[inline]
-fn mask_of(bits: u32) -> f32x4 {
-    let lane = i32x4::from([1, 2, 4, 8]);
-    bytemuck::cast((i32x4::splat(bits.cast_signed()) & lane).simd_eq(lane))
-}
-
 /// [`light_sum`] of up to four hits at once, lane `i` for `hits[i]` where
 /// `lanes` has bit `i` (the other lanes' colours are not defined);
 /// `blocked(j)` gives the lanes whose shadow ray towards light `j` is
@@ -133,18 +126,20 @@ pub(crate) fn light_sum_lanes(
             } else {
                 f32x4::ZERO
             };
-            c = Lanes {
-                x: bright_mask.bitselect(c.x + specular.x * power, c.x),
-                y: bright_mask.bitselect(c.y + specular.y * power, c.y),
-                z: bright_mask.bitselect(c.z + specular.z * power, c.z),
+            let lit_c = Lanes {
+                x: c.x + specular.x * power,
+                y: c.y + specular.y * power,
+                z: c.z + specular.z * power,
             };
+            c = Lanes::select(bright_mask, &lit_c, &c);
         }
         let (m, lc) = (mask_of(lit), light.color);
-        color = Lanes {
-            x: m.bitselect(color.x + f32x4::splat(lc.x) * c.x, color.x),
-            y: m.bitselect(color.y + f32x4::splat(lc.y) * c.y, color.y),
-            z: m.bitselect(color.z + f32x4::splat(lc.z) * c.z, color.z),
+        let sum = Lanes {
+            x: color.x + f32x4::splat(lc.x) * c.x,
+            y: color.y + f32x4::splat(lc.y) * c.y,
+            z: color.z + f32x4::splat(lc.z) * c.z,
         };
+        color = Lanes::select(m, &sum, &color);
     }
     color.to_vecs()
 }

@@ -10,7 +10,7 @@
 //! bits of its scalar twin, `light_terms_scalar` in the tests.
 
 use glam::Vec3;
-use wide::f32x4;
+use wide::{bytemuck, f32x4, i32x4};
 
 use crate::PointLight;
 
@@ -94,12 +94,29 @@ impl Lanes {
         }
     }
 
+    /// Lanes where `m` is set from `a`, the others from `b`.
+    #[inline]
+    pub fn select(m: f32x4, a: &Self, b: &Self) -> Self {
+        Self {
+            x: m.bitselect(a.x, b.x),
+            y: m.bitselect(a.y, b.y),
+            z: m.bitselect(a.z, b.z),
+        }
+    }
+
     /// The four vectors back, one per lane.
     #[inline]
     pub fn to_vecs(self) -> [Vec3; 4] {
         let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
         std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
     }
+}
+
+/// A lane mask (all bits set) for each bit of `bits`' low four.
+#[inline]
+pub(crate) fn mask_of(bits: u32) -> f32x4 {
+    let lane = i32x4::from([1, 2, 4, 8]);
+    bytemuck::cast((i32x4::splat(bits.cast_signed()) & lane).simd_eq(lane))
 }
 
 /// The light terms of four (light, hit) pairs, one to a lane: lights at

@@ -351,11 +351,14 @@ impl<T: Tracer> Shader<'_, T> {
             let four = std::array::from_fn(|i| &rays[4 * c + i]);
             self.scene.own_surfaces(four, std::array::from_fn(hit), |i, surf| {
                 let l = 4 * c + i;
+                let Some(h) = hit(i) else {
+                    return;
+                };
                 preps[l] = if self.passes_through(&surf, rays[l].dir) {
-                    self.prepare(&rays[l], cones[l], hit(i))
+                    self.prepare(&rays[l], cones[l], Some(h))
                 } else {
                     let mut cone = cones[l];
-                    cone.width = cone.width_at(&rays[l], hits[l].as_ref().map_or(0.0, |h| h.t));
+                    cone.width = cone.width_at(&rays[l], h.t);
                     Some(self.prepared(&rays[l], cone, surf))
                 };
             });
@@ -487,9 +490,8 @@ impl<T: Tracer> Shader<'_, T> {
     // PERF: the bounces are written in place: returned with the colour,
     // each lane's pair was copied by a `memcpy` call (in GL-like frames
     // too, where they are always `None`).
-    // PERF: textures and lights timed per hit here rather than in two passes
-    // over a packet's lanes: the second pass (texels kept in an array) made
-    // kitchen GL-like frames a few per cent slower side by side.
+    // NOTE: single rays and lone bounces; a packet's hits take the passes
+    // of `shade_block` (texels, then the light loop four lanes at a time).
     #[cfg_attr(not(test), allow(dead_code))]
     pub fn local(
         &mut self,
@@ -773,14 +775,11 @@ impl<T: Tracer> Shader<'_, T> {
         }
         let t = self.clock.stop::<ON>(t, Phase::Textures);
         let whitted = self.mode == RenderMode::Whitted;
-        for (c, chunk) in hits.chunks_exact(4).enumerate() {
+        for (c, four) in hits.as_chunks::<4>().0.iter().enumerate() {
             let bits = (have >> (4 * c)) & 0xf;
             if bits == 0 {
                 continue;
             }
-            let Ok(four) = <&[LitHit; 4]>::try_from(chunk) else {
-                continue;
-            };
             let blocked = |j: usize| {
                 if whitted {
                     blocked.get(j).map_or(0, |m| (m >> (4 * c)) & 0xf)

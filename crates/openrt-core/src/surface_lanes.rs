@@ -12,7 +12,7 @@ use glam::{Affine3A, Mat3, Vec2, Vec3};
 use openrt_accel::Ray;
 use wide::f32x4;
 
-use crate::light_quad::Lanes;
+use crate::light_quad::{Lanes, mask_of};
 use crate::{Scene, SceneHit, Surface};
 
 /// Four 3x3 matrices, one lane each, by columns.
@@ -82,27 +82,11 @@ fn interpolate(v: &[Lanes; 3], b: &[f32x4; 3]) -> Lanes {
     }
 }
 
-/// Lanes where `m` is set from `a`, the others from `b`.
-#[inline]
-fn select(m: f32x4, a: &Lanes, b: &Lanes) -> Lanes {
-    Lanes {
-        x: m.bitselect(a.x, b.x),
-        y: m.bitselect(a.y, b.y),
-        z: m.bitselect(a.z, b.z),
-    }
-}
-
 /// `Vec3::abs().max_element()` (`if a > b { a } else { b }`, which `maxps`
 /// is operand for operand).
 #[inline]
 fn abs_max_element(v: &Lanes) -> f32x4 {
     v.x.abs().fast_max(v.y.abs().fast_max(v.z.abs()))
-}
-
-/// A lane mask (all bits set) from four flags.
-#[inline]
-fn mask(flags: [bool; 4]) -> f32x4 {
-    f32x4::from(flags.map(|f| if f { f32::from_bits(u32::MAX) } else { 0.0 }))
 }
 
 impl Scene {
@@ -121,7 +105,7 @@ impl Scene {
         let mut tri = [[Vec3::ZERO; 4]; 3];
         let mut nrm = [[Vec3::ZERO; 4]; 3];
         let mut uvs = [[Vec2::ZERO; 4]; 3];
-        let mut has_normals = [false; 4];
+        let mut has_normals = 0u32;
         let (mut b1, mut b2) = ([0.0; 4], [0.0; 4]);
         for i in 0..4 {
             let Some(hit) = hits[i].filter(|h| h.frame == self.frame) else {
@@ -141,7 +125,7 @@ impl Scene {
                 nrm[k][i] = n[k];
                 uvs[k][i] = uv[k];
             }
-            has_normals[i] = sh.has_normals[p];
+            has_normals |= u32::from(sh.has_normals[p]) << i;
             (b1[i], b2[i]) = (hit.b1, hit.b2);
             found[i] = Some((hit, inst, sh.materials[p]));
         }
@@ -161,7 +145,7 @@ impl Scene {
             let inst = |i: usize| found[i].map_or(first, |f| f.1);
             let to_world = each(&|i| inst(i).to_world);
             Some((
-                mask(std::array::from_fn(|i| inst(i).identity)),
+                mask_of((0..4).fold(0, |m, i| m | (u32::from(inst(i).identity) << i))),
                 Mat3Lanes::new(std::array::from_fn(|i| inst(i).normal_matrix)),
                 f32x4::from(std::array::from_fn::<f32, 4, _>(|i| inst(i).det_sign)),
                 Mat3Lanes::new(to_world.map(|a| Mat3::from(a.matrix3))),
@@ -186,17 +170,17 @@ impl Scene {
                         y: l.y + translation.y,
                         z: l.z + translation.z,
                     };
-                    select(*identity, v, &moved)
+                    Lanes::select(*identity, v, &moved)
                 };
                 (
-                    select(*identity, &normalize_or_zero(&ng_obj), &normalize_or_zero(&g)),
-                    normalize_or_zero(&select(*identity, &interpolated, &normal.mul(&interpolated))),
+                    Lanes::select(*identity, &normalize_or_zero(&ng_obj), &normalize_or_zero(&g)),
+                    normalize_or_zero(&Lanes::select(*identity, &interpolated, &normal.mul(&interpolated))),
                     [world(&tri[0]), world(&tri[1]), world(&tri[2])],
                 )
             }
         };
         let zero = ns.x.simd_eq(f32x4::ZERO) & ns.y.simd_eq(f32x4::ZERO) & ns.z.simd_eq(f32x4::ZERO);
-        let shading = select(zero, &geometric, &select(mask(has_normals), &ns, &geometric));
+        let shading = Lanes::select(zero, &geometric, &Lanes::select(mask_of(has_normals), &ns, &geometric));
         let point = interpolate(&w, &b);
         let inf = f32x4::splat(f32::INFINITY);
         let finite =
