@@ -49,7 +49,7 @@ pub use error::AccelError;
 pub use geom::aabb::Aabb;
 pub use geom::box_quad::BoxQuad;
 pub use geom::hit::Hit;
-pub use geom::ray::Ray;
+pub use geom::ray::{Ray, rays_from_lanes};
 pub use geom::triangle::{TriHit, Triangle, intersect_triangle, is_valid_triangle};
 pub use kd::fast_build::{DEFAULT_REFIT_COST_LIMIT, FastParams, PARALLEL_MIN};
 pub use kd::node::{KdNode, MAX_DEPTH};

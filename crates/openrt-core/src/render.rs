@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
-use openrt_accel::{PacketWidth, Ray, lanes_of};
+use openrt_accel::{PacketWidth, lanes_of};
 use parking_lot::Mutex;
 
 use crate::camera::CameraRays;
@@ -679,12 +679,14 @@ fn packet_tile<const N: usize, T: Tracer>(
     let bounces = shader.traces_bounces();
     let mut shaded: Vec<ShadedBlock<N>> = Vec::new();
     shaded.resize_with(if bounces { blocks.len() } else { 1 }, ShadedBlock::new);
+    // Lanes outside the tile keep a valid ray, never read.
+    let mut rays = [job.cam.ray(tile.x0, tile.y0); N];
     for &(ox, oy) in offsets {
         // One packet per block and sample: the block's rays through the
         // same sub-pixel position stay coherent.
         for (b, ((at, lanes), s)) in blocks.iter().zip(&mut sum).enumerate() {
             let t = if job.timing { PhaseClock::start::<true>() } else { None };
-            let rays: [Ray; N] = std::array::from_fn(|l| job.cam.ray_at(at[l].0, at[l].1, ox, oy));
+            job.cam.rays_at(at, *lanes, ox, oy, &mut rays);
             if job.timing {
                 shader.clock.stop::<true>(t, Phase::Camera);
             }
