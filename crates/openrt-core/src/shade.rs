@@ -9,6 +9,7 @@ use crate::light_loop::{LitHit, light_sum, light_sum_lanes};
 use crate::light_quad::{LightQuad, light_terms};
 use crate::occluder_hint::OccluderHint;
 use crate::phases::{Phase, PhaseClock};
+use crate::surface_lanes::Facing;
 use crate::tracer::Tracer;
 use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
@@ -349,19 +350,21 @@ impl<T: Tracer> Shader<'_, T> {
             }
             let hit = |i: usize| hits[4 * c + i].as_ref().filter(|_| bits & (1 << i) != 0);
             let four = std::array::from_fn(|i| &rays[4 * c + i]);
-            self.scene.own_surfaces(four, std::array::from_fn(hit), |i, surf| {
-                let l = 4 * c + i;
-                let Some(h) = hit(i) else {
-                    return;
-                };
-                preps[l] = if self.passes_through(&surf, rays[l].dir) {
-                    self.prepare(&rays[l], cones[l], Some(h))
-                } else {
-                    let mut cone = cones[l];
-                    cone.width = cone.width_at(&rays[l], h.t);
-                    Some(self.prepared(&rays[l], cone, surf))
-                };
-            });
+            self.scene
+                .own_surfaces(four, std::array::from_fn(hit), |i, surf, facing| {
+                    let l = 4 * c + i;
+                    let Some(h) = hit(i) else {
+                        return;
+                    };
+                    preps[l] = if self.passes_through(&surf, rays[l].dir) {
+                        self.prepare(&rays[l], cones[l], Some(h))
+                    } else {
+                        // `Cone::width_at`, the length from the lanes.
+                        let mut cone = cones[l];
+                        cone.width += cone.spread * h.t * facing.len;
+                        Some(self.prepared_facing(cone, surf, facing))
+                    };
+                });
         }
     }
 
@@ -370,18 +373,15 @@ impl<T: Tracer> Shader<'_, T> {
     #[allow(clippy::inline_always)]
     #[inline(always)]
     fn prepared(&self, ray: &Ray, cone: Cone, surf: Surface) -> Prepared {
-        let d = ray.dir.normalize();
-        // Normals facing the incoming ray.
-        let back = surf.geometric_normal.dot(d) > 0.0;
-        let nf = if back {
-            -surf.geometric_normal
-        } else {
-            surf.geometric_normal
-        };
-        let mut ns = surf.shading_normal;
-        if ns.dot(nf) < 0.0 {
-            ns = -ns;
-        }
+        let facing = Facing::of(ray.dir, &surf);
+        self.prepared_facing(cone, surf, &facing)
+    }
+
+    /// [`Shader::prepared`] with the ray's [`Facing`] known.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn prepared_facing(&self, cone: Cone, surf: Surface, facing: &Facing) -> Prepared {
+        let Facing { d, back, nf, ns, .. } = *facing;
         // PERF: only Whitted mode traces rays from the hit.
         let p_out = if self.mode == RenderMode::Whitted {
             offset_ray_origin(surf.point, nf, surf.error_scale)

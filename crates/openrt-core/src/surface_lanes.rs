@@ -89,17 +89,98 @@ fn abs_max_element(v: &Lanes) -> f32x4 {
     v.x.abs().fast_max(v.y.abs().fast_max(v.z.abs()))
 }
 
+/// How a ray meets its hit's surface: the unit direction it arrives in,
+/// its direction's length, the side of the geometric normal it arrives
+/// at, and both normals turned to face it. The shading's first step for
+/// every hit; [`Facing::of`] for one hit, [`Scene::own_surfaces`] for four
+/// at once with the same bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Facing {
+    /// `ray.dir.normalize()`.
+    pub d: Vec3,
+    /// `ray.dir.length()` (the ray cone's scale).
+    pub len: f32,
+    /// `true` when the ray arrives at the back of the geometric normal.
+    pub back: bool,
+    /// Geometric normal facing the incoming ray.
+    pub nf: Vec3,
+    /// Shading normal on the side of `nf`.
+    pub ns: Vec3,
+}
+
+impl Facing {
+    /// How a ray of direction `dir` meets `surf` (the scalar twin).
+    #[inline]
+    pub fn of(dir: Vec3, surf: &Surface) -> Self {
+        let d = dir.normalize();
+        let back = surf.geometric_normal.dot(d) > 0.0;
+        let nf = if back {
+            -surf.geometric_normal
+        } else {
+            surf.geometric_normal
+        };
+        let mut ns = surf.shading_normal;
+        if ns.dot(nf) < 0.0 {
+            ns = -ns;
+        }
+        Self {
+            d,
+            len: dir.length(),
+            back,
+            nf,
+            ns,
+        }
+    }
+}
+
+/// [`Facing::of`] for four lanes: directions `dir`, geometric normals `g`
+/// and shading normals `s` (the same operations: `normalize` is
+/// `dir * (1 / sqrt(dir·dir))`, negation a flip of the sign bit).
+#[inline]
+fn facing_lanes(dir: &Lanes, g: &Lanes, s: &Lanes) -> [Facing; 4] {
+    let len = dot(dir, dir).sqrt();
+    let rcp = f32x4::ONE / len;
+    let d = Lanes {
+        x: dir.x * rcp,
+        y: dir.y * rcp,
+        z: dir.z * rcp,
+    };
+    let back = dot(g, &d).simd_gt(f32x4::ZERO);
+    let sign = f32x4::splat(-0.0);
+    let flip = |v: &Lanes, m: f32x4| Lanes {
+        x: v.x ^ (m & sign),
+        y: v.y ^ (m & sign),
+        z: v.z ^ (m & sign),
+    };
+    let nf = flip(g, back);
+    let ns = flip(s, dot(s, &nf).simd_lt(f32x4::ZERO));
+    let (d, nf, ns, len, back) = (
+        d.to_vecs(),
+        nf.to_vecs(),
+        ns.to_vecs(),
+        len.to_array(),
+        back.to_bitmask(),
+    );
+    std::array::from_fn(|i| Facing {
+        d: d[i],
+        len: len[i],
+        back: back & (1 << i) != 0,
+        nf: nf[i],
+        ns: ns[i],
+    })
+}
+
 impl Scene {
     /// [`Scene::own_surface`] of the hits of four rays at once: `emit(i,
-    /// surface)` for each lane `i` whose hit is this scene's, the same bits
-    /// as `own_surface`.
+    /// surface, facing)` for each lane `i` whose hit is this scene's, the
+    /// same bits as `own_surface` and [`Facing::of`].
     #[allow(clippy::inline_always)]
     #[inline(always)]
     pub(crate) fn own_surfaces(
         &self,
         rays: [&Ray; 4],
         hits: [Option<&SceneHit>; 4],
-        mut emit: impl FnMut(usize, Surface),
+        mut emit: impl FnMut(usize, Surface, &Facing),
     ) {
         let mut found = [None; 4];
         let mut tri = [[Vec3::ZERO; 4]; 3];
@@ -199,6 +280,8 @@ impl Scene {
         let world_area = dot(&e, &e).sqrt().to_array();
         let uvx = (ux * b[0] + u(1, |v| v.x) * b[1] + u(2, |v| v.x) * b[2]).to_array();
         let uvy = (uy * b[0] + u(1, |v| v.y) * b[1] + u(2, |v| v.y) * b[2]).to_array();
+        let dirs = Lanes::from_vecs(rays.map(|r| r.dir));
+        let facing = facing_lanes(&dirs, &geometric, &shading);
         let (geometric, shading, point) = (geometric.to_vecs(), shading.to_vecs(), point.to_vecs());
         let error_scale = error_scale.to_array();
         for i in 0..4 {
@@ -223,6 +306,7 @@ impl Scene {
                     instance: inst.id,
                     object: inst.object,
                 },
+                &facing[i],
             );
         }
     }
@@ -246,6 +330,18 @@ mod tests {
             .map(f32::to_bits)
             .collect();
         v.extend([s.material.index(), s.instance.index(), s.object.index()]);
+        v
+    }
+
+    /// Every field of a facing's bits.
+    fn facing_bits(f: &Facing) -> Vec<u32> {
+        let mut v: Vec<u32> = [f.d, f.nf, f.ns]
+            .iter()
+            .flat_map(Vec3::to_array)
+            .chain([f.len])
+            .map(f32::to_bits)
+            .collect();
+        v.push(u32::from(f.back));
         v
     }
 
@@ -310,11 +406,13 @@ mod tests {
             });
             let hits: [Option<SceneHit>; 4] = std::array::from_fn(|i| scene.intersect(&rays[i]));
             let mut got: [Option<Surface>; 4] = [None; 4];
+            let mut faces = [None; 4];
             scene.own_surfaces(
                 std::array::from_fn(|i| &rays[i]),
                 std::array::from_fn(|i| hits[i].as_ref()),
-                |i, s| {
+                |i, s, f| {
                     got[i] = Some(s);
+                    faces[i] = Some(*f);
                 },
             );
             let instances: Vec<u32> = hits.iter().flatten().map(|h| h.instance).collect();
@@ -326,6 +424,8 @@ mod tests {
                     got[i].as_ref().map(bits),
                     "round {round}, lane {i}"
                 );
+                let facing = want.as_ref().map(|s| facing_bits(&Facing::of(rays[i].dir, s)));
+                assert_eq!(facing, faces[i].as_ref().map(facing_bits), "round {round}, lane {i}");
                 compared += usize::from(want.is_some());
             }
         }
