@@ -18,22 +18,26 @@ use crate::highlight::{highlight_power_lanes, highlight_powers};
 use crate::light_quad::{Lanes, LightQuad, light_terms, mask_of, terms};
 
 /// What the light loop needs of one hit.
+// PERF: vectors of four lanes (`Vec3A`): a packet's hits are written with
+// one store per vector and taken four at a time by a transpose
+// (`lanes_of`), where three-float vectors took three stores and a load per
+// component.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct LitHit {
     /// Hit point.
-    pub p: Vec3,
+    pub p: Vec3A,
     /// Geometric normal facing the incoming ray.
-    pub nf: Vec3,
+    pub nf: Vec3A,
     /// Shading normal on the side of `nf`.
-    pub ns: Vec3,
+    pub ns: Vec3A,
     /// Unit direction to the eye (the incoming ray reversed).
-    pub view: Vec3,
+    pub view: Vec3A,
     /// Ambient light and emission: the colour before any light.
-    pub base: Vec3,
+    pub base: Vec3A,
     /// Diffuse reflectance, times the texture.
-    pub kd: Vec3,
+    pub kd: Vec3A,
     /// Specular reflectance.
-    pub specular: Vec3,
+    pub specular: Vec3A,
     /// The highlight's exponent.
     pub shininess: f32,
     /// The base at or below which the highlight's power is exactly zero
@@ -55,10 +59,11 @@ pub(crate) fn light_sum(
 ) -> Vec3 {
     // PERF: the sums stay in the lights' order, three channels to a
     // register (`Vec3A`: the same products and sums).
-    let (kd, specular) = (Vec3A::from(hit.kd), Vec3A::from(hit.specular));
-    let mut color = Vec3A::from(hit.base);
+    let (kd, specular) = (hit.kd, hit.specular);
+    let mut color = hit.base;
+    let (p, nf, ns, view) = (hit.p.into(), hit.nf.into(), hit.ns.into(), hit.view.into());
     for (q, quad) in quads.iter().enumerate() {
-        let terms = light_terms(quad, hit.p, hit.nf, hit.ns, hit.view);
+        let terms = light_terms(quad, p, nf, ns, view);
         // PERF: the four lights' highlight powers in one pass, no call
         // (`highlight.rs`), and none when every lit light's power would
         // be exactly zero: its base at most the material's floor
@@ -95,7 +100,7 @@ pub(crate) fn light_sum_lanes(
     lanes: u32,
     blocked: impl Fn(usize) -> u32,
 ) -> [Vec3; 4] {
-    let each = |f: fn(&LitHit) -> Vec3| Lanes::from_vecs(std::array::from_fn(|i| f(&hits[i])));
+    let each = |f: fn(&LitHit) -> Vec3A| lanes_of_vectors(std::array::from_fn(|i| f(&hits[i])));
     let (p, nf, ns, view) = (each(|h| h.p), each(|h| h.nf), each(|h| h.ns), each(|h| h.view));
     let (kd, specular) = (each(|h| h.kd), each(|h| h.specular));
     let mut color = each(|h| h.base);
@@ -144,6 +149,13 @@ pub(crate) fn light_sum_lanes(
     color.to_vecs()
 }
 
+/// Four vectors, one to a lane: their registers transposed.
+#[inline]
+fn lanes_of_vectors(v: [Vec3A; 4]) -> Lanes {
+    let [x, y, z, _] = f32x4::transpose(v.map(|v| f32x4::from(<[f32; 4]>::from(v.extend(0.0)))));
+    Lanes { x, y, z }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,13 +194,13 @@ mod tests {
         };
         let specular = colour(rng);
         LitHit {
-            p,
-            nf,
-            ns,
-            view: unit(rng),
-            base: colour(rng),
-            kd: colour(rng),
-            specular,
+            p: p.into(),
+            nf: nf.into(),
+            ns: ns.into(),
+            view: unit(rng).into(),
+            base: colour(rng).into(),
+            kd: colour(rng).into(),
+            specular: specular.into(),
             shininess,
             floor: zero_power_below(shininess),
             highlights: shininess > 0.0 && specular != Vec3::ZERO,
@@ -224,7 +236,7 @@ mod tests {
                     "round {round}, lane {i}: {:?}",
                     hits[i]
                 );
-                lit += usize::from(want != hits[i].base);
+                lit += usize::from(want != Vec3::from(hits[i].base));
             }
         }
         // Most hits are lit by something.

@@ -1,6 +1,6 @@
 //! Whitted ray tracing and the "OpenGL-like" local shading mode.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use openrt_accel::{Ray, lanes_of, sign_groups};
 use wide::f32x4;
 
@@ -631,14 +631,16 @@ impl<T: Tracer> Shader<'_, T> {
             Some(t) => mat.emission * self.emission_texel(prep, t),
             None => mat.emission,
         };
+        // Vectors of four lanes: the same products, one per component.
+        let (tex, a) = (Vec3A::from(tex), Vec3A::from);
         LitHit {
-            p: surf.point,
-            nf: prep.nf,
-            ns: prep.ns,
-            view: -prep.d,
-            base: self.env.ambient * (mat.ambient * tex) + emission,
-            kd: mat.diffuse * tex,
-            specular: mat.specular,
+            p: surf.point.into(),
+            nf: prep.nf.into(),
+            ns: prep.ns.into(),
+            view: a(-prep.d),
+            base: a(self.env.ambient) * (a(mat.ambient) * tex) + a(emission),
+            kd: a(mat.diffuse) * tex,
+            specular: mat.specular.into(),
             shininess: mat.shininess,
             floor,
             highlights,
