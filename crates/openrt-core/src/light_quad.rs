@@ -128,6 +128,24 @@ pub(crate) fn mask_of(bits: u32) -> f32x4 {
 #[inline]
 pub(crate) fn terms(light: &Lanes, p: &Lanes, nf: &Lanes, ns: &Lanes, view: &Lanes) -> (f32x4, f32x4, f32x4) {
     let s = f32x4::splat;
+    let (lit, Lanes { x: lx, y: ly, z: lz }) = towards(light, p, nf);
+    let ndl = ns.x * lx + ns.y * ly + ns.z * lz;
+    // `reflect(-l, ns)`: `d - (2 * d·n) * n` with `d = -l`.
+    let (dx, dy, dz) = (-lx, -ly, -lz);
+    let k = s(2.0) * (dx * ns.x + dy * ns.y + dz * ns.z);
+    let (rx, ry, rz) = (dx - k * ns.x, dy - k * ns.y, dz - k * ns.z);
+    let rdv = rx * view.x + ry * view.y + rz * view.z;
+    (lit, ndl, rdv)
+}
+
+/// The lanes whose light at `light` lies on the side of the facing normal
+/// `nf` at hit points `p` (and not at the point), as a mask, and the unit
+/// directions to the light: the shading's `lit_side` (`try_normalize`,
+/// then `l·nf > 0`) four lanes at a time, its operations in its order.
+/// The light loop ([`terms`]) and the shadow rays' set-up both decide here.
+#[inline]
+pub(crate) fn towards(light: &Lanes, p: &Lanes, nf: &Lanes) -> (f32x4, Lanes) {
+    let s = f32x4::splat;
     // The direction to the light, normalized as `Vec3::try_normalize` does:
     // `((x*x + y*y) + z*z)`, a square root, `1 / len`, then three products.
     let (tx, ty, tz) = (light.x - p.x, light.y - p.y, light.z - p.z);
@@ -136,13 +154,7 @@ pub(crate) fn terms(light: &Lanes, p: &Lanes, nf: &Lanes, ns: &Lanes, view: &Lan
     let ok = rcp.simd_gt(s(0.0)) & rcp.simd_lt(s(f32::INFINITY));
     let (lx, ly, lz) = (tx * rcp, ty * rcp, tz * rcp);
     let facing = (lx * nf.x + ly * nf.y + lz * nf.z).simd_gt(s(0.0));
-    let ndl = ns.x * lx + ns.y * ly + ns.z * lz;
-    // `reflect(-l, ns)`: `d - (2 * d·n) * n` with `d = -l`.
-    let (dx, dy, dz) = (-lx, -ly, -lz);
-    let k = s(2.0) * (dx * ns.x + dy * ns.y + dz * ns.z);
-    let (rx, ry, rz) = (dx - k * ns.x, dy - k * ns.y, dz - k * ns.z);
-    let rdv = rx * view.x + ry * view.y + rz * view.z;
-    (ok & facing, ndl, rdv)
+    (ok & facing, Lanes { x: lx, y: ly, z: lz })
 }
 
 /// The scalar twin of [`light_terms`] for one light: `Some((n·l, r·v))`

@@ -1,12 +1,12 @@
 //! Whitted ray tracing and the "OpenGL-like" local shading mode.
 
 use glam::{Vec3, Vec3A};
-use openrt_accel::{Ray, lanes_of, sign_groups};
+use openrt_accel::{Ray, lanes_of, rays_from_lanes, sign_groups};
 use wide::f32x4;
 
 use crate::highlight::{highlight_powers, log2_above_one};
 use crate::light_loop::{LitHit, light_sum, light_sum_lanes};
-use crate::light_quad::{LightQuad, light_terms};
+use crate::light_quad::{Lanes, LightQuad, light_terms, towards};
 use crate::occluder_hint::OccluderHint;
 use crate::phases::{Phase, PhaseClock};
 use crate::surface_lanes::Facing;
@@ -738,14 +738,17 @@ impl<T: Tracer> Shader<'_, T> {
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
             blocked.reserve(self.env.lights.len());
+            // PERF: the shadow rays four lanes at a time: the hits' points,
+            // facing normals and ray origins gathered once for every light,
+            // the lit side decided and the rays made in registers
+            // (`ShadowLanes::rays`: each lane is `shadow_ray`'s ray). Lanes
+            // without a ray keep a camera ray, never read.
+            let chunks = ShadowLanes::gather(&preps);
+            let mut shadow = *rays;
             for (j, light) in self.env.lights.iter().enumerate() {
-                let mut shadow = *rays;
                 let mut mask = 0u32;
-                for (l, p) in preps.iter().enumerate() {
-                    if let Some(r) = p.as_ref().and_then(|p| self.shadow_ray(p, j, light)) {
-                        shadow[l] = r;
-                        mask |= 1 << l;
-                    }
+                for (c, chunk) in chunks.iter().enumerate().take(N / 4) {
+                    mask |= chunk.rays(j, light.position, &mut shadow[4 * c..]) << (4 * c);
                 }
                 self.counts.shadow += u64::from(mask.count_ones());
                 blocked.push(if mask == 0 {
@@ -951,6 +954,61 @@ fn lit_side(prep: &Prepared, light: &PointLight) -> Option<Vec3> {
     to_light.try_normalize().filter(|l| l.dot(prep.nf) > 0.0)
 }
 
+/// Four lanes of a packet's prepared hits as the shadow rays need them:
+/// hit points, facing normals and the origins of rays leaving them, with
+/// each lane's silent lights.
+#[derive(Clone, Copy, Default)]
+struct ShadowLanes {
+    p: Lanes,
+    nf: Lanes,
+    out: Lanes,
+    silent: [u64; 4],
+    /// The lanes with a prepared hit.
+    lanes: u32,
+}
+
+impl ShadowLanes {
+    /// The chunks of four lanes of `preps` (up to 16 lanes).
+    #[inline]
+    fn gather<const N: usize>(preps: &[Option<Prepared>; N]) -> [Self; 4] {
+        let mut chunks = [Self::default(); 4];
+        for (c, chunk) in chunks.iter_mut().enumerate().take(N / 4) {
+            let (mut p, mut nf, mut out) = ([Vec3::ZERO; 4], [Vec3::ZERO; 4], [Vec3::ZERO; 4]);
+            for i in 0..4 {
+                if let Some(prep) = &preps[4 * c + i] {
+                    (p[i], nf[i], out[i]) = (prep.surf.point, prep.nf, prep.p_out);
+                    chunk.silent[i] = prep.silent;
+                    chunk.lanes |= 1 << i;
+                }
+            }
+            (chunk.p, chunk.nf, chunk.out) = (Lanes::from_vecs(p), Lanes::from_vecs(nf), Lanes::from_vecs(out));
+        }
+        chunks
+    }
+
+    /// [`Shader::shadow_ray`] towards light `j` at `light` for the four
+    /// lanes (Whitted mode), written to `out[i]` for each lane `i` of the
+    /// returned mask: not silent, the light on the lit side ([`towards`],
+    /// `lit_side`'s decision), and the ray `towards_light` makes
+    /// ([`rays_from_lanes`], its bits).
+    #[inline]
+    fn rays(&self, j: usize, light: Vec3, out: &mut [Ray]) -> u32 {
+        if self.lanes == 0 {
+            return 0;
+        }
+        let at = Lanes::splat(light);
+        let (lit, _) = towards(&at, &self.p, &self.nf);
+        let silent = (0..4).fold(0, |m, i| m | (u32::from(j < 64 && self.silent[i] & (1 << j) != 0) << i));
+        let mask = lit.to_bitmask() & self.lanes & !silent;
+        if mask != 0 {
+            let o = &self.out;
+            let dir = [at.x - o.x, at.y - o.y, at.z - o.z];
+            rays_from_lanes(out, mask, [o.x, o.y, o.z], dir, 0.0, 1.0 - 1e-4);
+        }
+        mask
+    }
+}
+
 /// Snell refraction of unit `d` through unit normal `n` facing the incoming
 /// side, with `eta = n_incoming / n_transmitted`; `None` on total internal reflection.
 #[inline]
@@ -1016,6 +1074,106 @@ mod tests {
     /// differ) of materials without diffuse reflection (the kitchen's
     /// metals, broad highlights, no highlight) and one with it (never
     /// silent), lit by six lights around them, one of infinite colour.
+    /// A light's shadow rays made four lanes at a time are `shadow_ray`'s
+    /// rays bit for bit (compared through `Debug`, zeros' signs included),
+    /// with the same lanes: lights on either side of the surfaces, at a
+    /// hit point, far away, metals with silent lights, and any lanes of a
+    /// 16-lane packet with or without a hit.
+    #[test]
+    fn shadow_rays_four_lanes_at_a_time_are_each_lanes_own() {
+        use crate::{Context, Material, PrimitiveKind};
+        use rand::rngs::SmallRng;
+        use rand::{Rng, SeedableRng};
+        let mut ctx = Context::new();
+        let metal = ctx
+            .create_material(Material {
+                diffuse: Vec3::ZERO,
+                specular: Vec3::splat(0.9),
+                shininess: 97.4304,
+                ..Material::default()
+            })
+            .unwrap();
+        for k in 0..2u64 {
+            let obj = ctx.gen_object();
+            ctx.begin_object(obj).unwrap();
+            if k == 1 {
+                ctx.material(metal).unwrap();
+            }
+            ctx.begin(PrimitiveKind::Triangles).unwrap();
+            for t in openrt_accel::meshgen::bumpy_sphere(500, k, 0.2) {
+                for v in t {
+                    ctx.vertex(v + Vec3::X * 3.0 * k as f32).unwrap();
+                }
+            }
+            ctx.end().unwrap();
+            ctx.end_object().unwrap();
+            ctx.instantiate(obj).unwrap();
+        }
+        ctx.commit().unwrap();
+        let scene = ctx.scene();
+        let mut rng = SmallRng::seed_from_u64(0x5ad0);
+        let mut compared = 0;
+        for round in 0..2_000 {
+            let centre = Vec3::X * 3.0 * (round % 2) as f32;
+            let rays: [Ray; 16] = std::array::from_fn(|_| {
+                let o = centre + Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 3.0);
+                let aim = centre + Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
+                Ray::new(o, aim - o, 0.0, f32::INFINITY)
+            });
+            let hits: [Option<SceneHit>; 16] = std::array::from_fn(|l| scene.intersect(&rays[l]));
+            let mut lights: Vec<PointLight> = (0..5)
+                .map(|_| PointLight {
+                    position: centre + Vec3::new(rng.random(), rng.random(), rng.random()) * 8.0 - 4.0,
+                    color: Vec3::ONE,
+                })
+                .collect();
+            if let Some(h) = hits.iter().flatten().next() {
+                lights.push(PointLight {
+                    position: rays[0].at(h.t),
+                    color: Vec3::ONE,
+                });
+            }
+            lights.push(PointLight {
+                position: Vec3::splat(1e30),
+                color: Vec3::ONE,
+            });
+            let env = Environment {
+                lights,
+                ..Environment::default()
+            };
+            let shader = Shader::new(&scene, &*scene, &env, RenderMode::Whitted, 0, TextureFilter::Trilinear);
+            let lanes: u32 = rng.random_range(0..=u32::MAX) & 0xffff;
+            let mut preps: [Option<Prepared>; 16] = [const { None }; 16];
+            shader.prepare_lanes(&rays, &[Cone::default(); 16], &hits, lanes, &mut preps);
+            let chunks = ShadowLanes::gather(&preps);
+            for (j, light) in env.lights.iter().enumerate() {
+                let keep = rays[0];
+                let mut got = [keep; 16];
+                let mut mask = 0;
+                for (c, chunk) in chunks.iter().enumerate() {
+                    mask |= chunk.rays(j, light.position, &mut got[4 * c..]) << (4 * c);
+                }
+                for l in 0..16 {
+                    let want = preps[l].as_ref().and_then(|p| shader.shadow_ray(p, j, light));
+                    assert_eq!(
+                        want.is_some(),
+                        mask & (1 << l) != 0,
+                        "round {round}, light {j}, lane {l}"
+                    );
+                    if let Some(want) = want {
+                        assert_eq!(
+                            format!("{:?}", got[l]),
+                            format!("{want:?}"),
+                            "round {round}, light {j}, lane {l}"
+                        );
+                        compared += 1;
+                    }
+                }
+            }
+        }
+        assert!(compared > 15_000, "{compared} rays compared");
+    }
+
     #[test]
     fn silent_lights_change_no_bit_of_the_colour() {
         use crate::{Context, Material, PrimitiveKind};
