@@ -20,7 +20,7 @@ use crate::light_quad::{Lanes, LightQuad, light_terms, mask_of, terms};
 /// What the light loop needs of one hit.
 // PERF: vectors of four lanes (`Vec3A`): a packet's hits are written with
 // one store per vector and taken four at a time by a transpose
-// (`lanes_of`), where three-float vectors took three stores and a load per
+// (`lanes_of_vectors`), where three-float vectors took three stores and a load per
 // component.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct LitHit {

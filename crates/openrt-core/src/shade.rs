@@ -95,13 +95,17 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3, scale: f32) -> Vec3 {
 }
 
 /// The shadow ray from `from` towards a point light at `light`, ending just
-/// short of it (the interval `[0, 1 - 1e-4]` of `light - from`).
+/// short of it (the interval `[0, SHADOW_RAY_END]` of `light - from`).
 // PERF: the ray built in place (`Ray::new_inline`): kitchen Whitted frames
 // 1.7% faster.
 #[inline]
 fn towards_light(from: Vec3, light: Vec3) -> Ray {
-    Ray::new_inline(from, light - from, 0.0, 1.0 - 1e-4)
+    Ray::new_inline(from, light - from, 0.0, SHADOW_RAY_END)
 }
+
+/// Where a shadow ray's interval ends, in units of `light - from`: just
+/// short of the light, so that the light's own position never blocks it.
+const SHADOW_RAY_END: f32 = 1.0 - 1e-4;
 
 /// The shadow ray from `ray`'s first hit in `scene` towards a point light at
 /// `light`, as Whitted mode makes it: from the hit point moved off the
@@ -203,7 +207,13 @@ impl Cone {
     /// The cone's width where `ray` reaches `t`.
     #[inline]
     fn width_at(self, ray: &Ray, t: f32) -> f32 {
-        self.width + self.spread * t * ray.dir.length()
+        self.width_for(t, ray.dir.length())
+    }
+
+    /// [`Cone::width_at`] for a ray whose direction has length `len`.
+    #[inline]
+    fn width_for(self, t: f32, len: f32) -> f32 {
+        self.width + self.spread * t * len
     }
 }
 
@@ -359,9 +369,8 @@ impl<T: Tracer> Shader<'_, T> {
                     preps[l] = if self.passes_through(&surf, rays[l].dir) {
                         self.prepare(&rays[l], cones[l], Some(h))
                     } else {
-                        // `Cone::width_at`, the length from the lanes.
                         let mut cone = cones[l];
-                        cone.width += cone.spread * h.t * facing.len;
+                        cone.width = cone.width_for(h.t, facing.len);
                         Some(self.prepared_facing(cone, surf, facing))
                     };
                 });
@@ -1003,7 +1012,7 @@ impl ShadowLanes {
         if mask != 0 {
             let o = &self.out;
             let dir = [at.x - o.x, at.y - o.y, at.z - o.z];
-            rays_from_lanes(out, mask, [o.x, o.y, o.z], dir, 0.0, 1.0 - 1e-4);
+            rays_from_lanes(out, mask, [o.x, o.y, o.z], dir, 0.0, SHADOW_RAY_END);
         }
         mask
     }
