@@ -14,9 +14,10 @@
 # MODE is gl or whitted; FRAMES a range as `openrt play --frames` takes it
 # (start after the first frame of a scene: it builds the trees). Any frame
 # whose PNG differs between A and B is named (DIFF). Needs `taskset`.
+# OPENRT_AB_ARGS: more `openrt play` options for both sides (`--accel bvh`).
 set -euo pipefail
 if [ $# -ne 6 ]; then
-    sed -n '2,17p' "$0"
+    sed -n '2,18p' "$0"
     exit 2
 fi
 scene=$1 mode=$2 frames=$3 runs=$4 a=$5 b=$6
@@ -33,7 +34,8 @@ for r in $(seq "$runs"); do
         [ $side = b ] && bin=$b
         out="$tmp/$side-$r"
         mkdir -p "$out"
-        if ! taskset -c 0 "$bin" play "$path" --frames "$frames" --mode "$mode" --threads 1 \
+        # shellcheck disable=SC2086 # the options split into words
+        if ! taskset -c 0 "$bin" play "$path" --frames "$frames" --mode "$mode" --threads 1 ${OPENRT_AB_ARGS:-} \
             --width 640 --height 480 -o "$out" --stats "$out/stats.jsonl" > "$out/log" 2>&1; then
             echo "ab-alternate: $bin failed:" >&2
             tail -3 "$out/log" >&2

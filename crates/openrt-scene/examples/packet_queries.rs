@@ -3,10 +3,11 @@
 //! 16-lane pixel blocks (closest hit), or the shadow rays from their hits
 //! towards each light (`shadow`: any hit, a packet per block and light,
 //! each light's last occluder tried first as in a frame),
-//! through the packet queries or one by one (`single`); no shading. The
+//! through the packet queries or one by one (`single`), with the kd-trees or
+//! the BVHs (`bvh`) under the instances; no shading. The
 //! rays are those of `openrt bench`'s query table. Prints the best pass.
 //!
-//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single]`
+//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single] [bvh]`
 use glam::Vec3;
 use openrt_accel::Ray;
 use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
@@ -19,6 +20,9 @@ fn main() {
     let single = args.iter().any(|s| s == "single");
     let shadow = args.iter().any(|s| s == "shadow");
     let mut player = ScenePlayer::open(Some(&path)).unwrap();
+    if args.iter().any(|s| s == "bvh") {
+        player.set_accel(openrt_core::Accel::Bvh).unwrap();
+    }
     let t = player.time_of(player.frames() / 2);
     player.set_time(player.time_of(0)).unwrap();
     player.set_time(t).unwrap();

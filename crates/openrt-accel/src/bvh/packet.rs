@@ -81,7 +81,7 @@ impl LaneRays {
     /// non-zero reciprocal, rounding keeps the order), so the decisions are
     /// the same.
     #[inline]
-    fn test(&self, node: &BvhNode, i: usize, g: usize, closest: f32x4) -> (u32, f32x4) {
+    pub(super) fn test(&self, node: &BvhNode, i: usize, g: usize, closest: f32x4) -> (u32, f32x4) {
         let mut near = self.t_min[g];
         let mut far = f32x4::splat(f32::INFINITY);
         for a in 0..3 {
@@ -93,6 +93,26 @@ impl LaneRays {
             far = far.fast_min(t1.fast_max(t2));
         }
         let far = (far * f32x4::splat(FAR_WIDEN)).fast_min(closest);
+        let near = near - near.abs() * f32x4::splat(NEAR_SLACK);
+        (near.simd_le(far).to_bitmask() & 0xF, near)
+    }
+
+    /// The same test for one lane `l` against all four children of `node`
+    /// at once: lane `l`'s bits of [`LaneRays::test`] child by child.
+    #[inline]
+    pub(super) fn test_lane(&self, node: &BvhNode, l: usize, closest: f32) -> (u32, f32x4) {
+        let (g, i) = (l / 4, l % 4);
+        let pick = |v: f32x4| f32x4::splat(v.to_array()[i]);
+        let mut near = pick(self.t_min[g]);
+        let mut far = f32x4::splat(f32::INFINITY);
+        for a in 0..3 {
+            let (o, inv) = (pick(self.o[a][g]), pick(self.inv[a][g]));
+            let t1 = (node.lo[a] - o) * inv;
+            let t2 = (node.hi[a] - o) * inv;
+            near = near.fast_max(t1.fast_min(t2));
+            far = far.fast_min(t1.fast_max(t2));
+        }
+        let far = (far * f32x4::splat(FAR_WIDEN)).fast_min(f32x4::splat(closest));
         let near = near - near.abs() * f32x4::splat(NEAR_SLACK);
         (near.simd_le(far).to_bitmask() & 0xF, near)
     }
@@ -117,15 +137,17 @@ impl Cull<'_> {
         }
     }
 
+    /// The children of `node` that no lane reaches; `t_max()`: the
+    /// farthest bound of the lanes, asked for only by the intervals.
     #[inline]
-    fn rejects(&self, node: &BvhNode, t_max: f32) -> u32 {
+    fn rejects(&self, node: &BvhNode, t_max: impl FnOnce() -> f32) -> u32 {
         let quad = || BoxQuad {
             min: node.lo,
             max: node.hi,
         };
         match self {
             Cull::Frustum(f) => f.rejects_box_quad(&quad()),
-            Cull::Interval(iv) => iv.rejects_box_quad(&quad(), t_max),
+            Cull::Interval(iv) => iv.rejects_box_quad(&quad(), t_max()),
             Cull::None => 0,
         }
     }
@@ -178,28 +200,42 @@ where
                 }
             } else {
                 let node = &nodes[cur.child as usize];
-                let far = crate::packet::width::lanes_of(active).fold(f32::NEG_INFINITY, |m, l| m.max(closest[l]));
+                // PERF: the lanes' farthest bound only for the intervals
+                // (a frustum does not use it): folding it at every node was
+                // a tenth of kitchen's primary queries.
+                let far = || crate::packet::width::lanes_of(active).fold(f32::NEG_INFINITY, |m, l| m.max(closest[l]));
                 let occupied = (0..BVH_WIDTH).fold(0u32, |m, i| m | (u32::from(node.child[i] != EMPTY_SLOT) << i));
-                let mut cand = occupied & !cull.rejects(node, far);
-                let bounds: [f32x4; MAX_GROUPS] = std::array::from_fn(|g| {
-                    if g < lr.groups {
-                        f32x4::new(std::array::from_fn(|i| closest[g * 4 + i]))
-                    } else {
-                        f32x4::ZERO
-                    }
-                });
                 let mut kids = [(0u32, 0.0f32); BVH_WIDTH];
                 let mut n = 0;
+                // The first active lane against all four children at once
+                // (Wald, Boulos & Shirley 2007): a child it meets takes
+                // every active lane along; the others, unless the packet's
+                // culling rejects them, search on by groups.
+                // NOTE: `occupied` first: the min/max slab test passes the
+                // empty boxes of unused slots.
+                let first = active.trailing_zeros() as usize;
+                let (met, near) = lr.test_lane(node, first, closest[first]);
+                let near = near.to_array();
+                let mut along = occupied & met;
+                let rest = occupied & !met;
+                let mut cand = if rest == 0 { 0 } else { rest & !cull.rejects(node, far) };
+                while along != 0 {
+                    let i = along.trailing_zeros() as usize;
+                    along &= along - 1;
+                    kids[n] = (active | ((i as u32) << 24), near[i]);
+                    n += 1;
+                }
                 while cand != 0 {
                     let i = cand.trailing_zeros() as usize;
                     cand &= cand - 1;
                     // First active lane group with a hit: earlier lanes
                     // miss, that group's lanes are exact, later ones carried.
-                    for (g, &bound) in bounds.iter().enumerate().take(lr.groups) {
+                    for g in first / 4..lr.groups {
                         let want = (active >> (4 * g)) & 0xF;
                         if want == 0 {
                             continue;
                         }
+                        let bound = f32x4::new(std::array::from_fn(|i| closest[g * 4 + i]));
                         let (hit, near) = lr.test(node, i, g, bound);
                         let hit = hit & want;
                         if hit != 0 {

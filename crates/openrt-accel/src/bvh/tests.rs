@@ -199,6 +199,69 @@ fn the_node_test_equals_its_scalar_twin_bit_for_bit() {
     );
 }
 
+/// The first-active-lane test of all four children at once gives, child by
+/// child, the lane's bits of the group test and of the single-ray test.
+#[test]
+fn the_lane_test_of_four_children_equals_the_group_and_single_ray_tests() {
+    let mut rng = SmallRng::seed_from_u64(17);
+    let mut v = |lo: f32, hi: f32| {
+        Vec3::new(
+            rng.random_range(lo..hi),
+            rng.random_range(lo..hi),
+            rng.random_range(lo..hi),
+        )
+    };
+    let mut met = 0;
+    for k in 0..3_000 {
+        let mut node = BvhNode::empty();
+        let used = 1 + k % BVH_WIDTH;
+        for i in 0..used {
+            let a = v(-2.0, 2.0);
+            let e = v(0.0, 2.0);
+            node.set_box(i, &Aabb::new(a, a + e));
+            node.child[i] = 0;
+        }
+        let o = v(-4.0, 4.0);
+        let rays: [Ray; 16] = std::array::from_fn(|_| Ray::new(o, v(-2.0, 2.0) - o, 0.0, f32::INFINITY));
+        let closest: [f32; 16] = std::array::from_fn(|l| {
+            if l % 3 == 0 {
+                f32::INFINITY
+            } else {
+                1.0 + l as f32 * 0.4
+            }
+        });
+        let lr = packet::LaneRays::new(&rays);
+        for (l, ray) in rays.iter().enumerate() {
+            if !ray.is_valid() || ray.dir.cmpeq(Vec3::ZERO).any() {
+                continue;
+            }
+            let (mask, near) = lr.test_lane(&node, l, closest[l]);
+            let mask = mask & ((1 << used) - 1);
+            let (g, j) = (l / 4, l % 4);
+            let bound = f32x4_of(std::array::from_fn(|i| closest[g * 4 + i]));
+            for i in 0..used {
+                let (hits, nears) = lr.test(&node, i, g, bound);
+                assert_eq!(mask >> i & 1, hits >> j & 1, "case {k} lane {l} child {i}");
+                if mask >> i & 1 != 0 {
+                    assert_eq!(
+                        near.to_array()[i].to_bits(),
+                        nears.to_array()[j].to_bits(),
+                        "case {k} lane {l} child {i}"
+                    );
+                }
+            }
+            let (single, _) = NodeRay::new(ray).test(&node, closest[l]);
+            assert_eq!(mask, single, "case {k} lane {l}: not the single-ray test");
+            met += mask.count_ones();
+        }
+    }
+    assert!(met > 5_000, "{met} boxes met: the sweep tests too little");
+}
+
+fn f32x4_of(v: [f32; 4]) -> wide::f32x4 {
+    wide::f32x4::new(v)
+}
+
 #[test]
 fn refits_follow_moving_triangles_and_rebuild_when_the_tree_degrades() {
     let tris = meshgen::bumpy_sphere(4000, 3, 0.2);
