@@ -99,8 +99,9 @@ fn dense<const N: usize>(active: u32) -> bool {
 }
 
 /// What a packet walk needs made once: the frustum (the caller's, else
-/// one made from rays that share an origin or an end point) and the lanes
-/// laid out (the caller's, else made here).
+/// one made from rays that share an origin or an end point) and, for
+/// packets without one, the lanes laid out for the interval culling (the
+/// caller's, else made here).
 struct Prepared<'a, const N: usize> {
     given: Option<&'a Frustum>,
     own: Option<Frustum>,
@@ -114,7 +115,11 @@ impl<'a, const N: usize> Prepared<'a, N> {
             .is_none()
             .then(|| Frustum::new(rays, live).or_else(|| Frustum::ending(rays, live)))
             .flatten();
-        let own_boxes = laid_out.is_none().then(|| PacketBoxes::new(rays, live));
+        // PERF: the lanes are laid out only for the intervals, which a
+        // packet with a frustum does not use (an instance with a transform
+        // laid them out at every entry: terrain packets).
+        let needs_boxes = given.is_none() && own.is_none() && laid_out.is_none();
+        let own_boxes = needs_boxes.then(|| PacketBoxes::new(rays, live));
         Self {
             given,
             own,
@@ -127,10 +132,13 @@ impl<'a, const N: usize> Prepared<'a, N> {
         self.given.or(self.own.as_ref())
     }
 
-    fn boxes(&self) -> &PacketBoxes<N> {
-        self.laid_out
-            .or(self.own_boxes.as_ref())
-            .expect("`new` lays the lanes out when the caller did not")
+    /// The packet's culling: its frustum, else intervals over its lanes.
+    fn cull(&self, live: u32) -> packet::Cull<'_> {
+        match (self.frustum(), self.laid_out.or(self.own_boxes.as_ref())) {
+            (Some(f), _) => packet::Cull::Frustum(f),
+            (None, Some(boxes)) => packet::Cull::of(None, boxes, live),
+            (None, None) => packet::Cull::None,
+        }
     }
 }
 
@@ -409,7 +417,7 @@ impl Bvh {
         }
         let prep = Prepared::new(rays, live, frustum, laid_out);
         let frustum = prep.frustum();
-        let cull = packet::Cull::of(frustum, prep.boxes(), live);
+        let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);
         let pbr = PacketBlockRay::new(rays, live);
         let mut brs: Option<[BlockRay; N]> = None;
@@ -497,7 +505,7 @@ impl Bvh {
         }
         let prep = Prepared::new(rays, live, frustum, laid_out);
         let frustum = prep.frustum();
-        let cull = packet::Cull::of(frustum, prep.boxes(), live);
+        let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);
         let pbr = PacketBlockRay::new(rays, live);
         let mut brs: Option<[BlockRay; N]> = None;
