@@ -21,6 +21,7 @@
 use wide::f32x4;
 
 use crate::geom::aabb::Aabb;
+use crate::geom::box_quad::BoxQuad;
 use crate::geom::numeric::gamma;
 use crate::geom::ray::Ray;
 
@@ -183,6 +184,39 @@ pub fn ray_reaches(bounds: &Aabb, ray: &Ray, t_max: f32) -> bool {
         far = if far <= last { far } else { last };
     }
     near <= far || t_max.is_nan()
+}
+
+/// [`ray_reaches`] for the four boxes of `quad` at once (bit `i`: box `i`
+/// may be reached): the same operations box by box, so the same answers
+/// for boxes without NaN coordinates, empty ones included (tested).
+#[must_use]
+#[inline]
+pub fn ray_reaches_quad(quad: &BoxQuad, ray: &Ray, t_max: f32) -> u32 {
+    let (o, inv) = (ray.origin, ray.inv_dir);
+    if !(inv.is_finite() && o.is_finite() && inv.cmpne(glam::Vec3::ZERO).all()) {
+        return 0xF;
+    }
+    let (lo, hi) = (quad.min, quad.max);
+    let abs_max = |a: usize| lo[a].abs().fast_max(hi[a].abs());
+    let scale = abs_max(0)
+        .fast_max(abs_max(1))
+        .fast_max(abs_max(2))
+        .fast_max(f32x4::splat(0.0f32.max(o.abs().max_element())));
+    let slack = f32x4::splat(BOX_SLACK) * scale;
+    let (o, inv) = (o.to_array(), inv.to_array());
+    let mut near = f32x4::splat(ray.t_min);
+    let mut far = f32x4::splat(t_max * (1.0 + 1e-5));
+    for a in 0..3 {
+        let (oa, ia) = (f32x4::splat(o[a]), f32x4::splat(inv[a]));
+        let t0 = (lo[a] - slack - oa) * ia;
+        let t1 = (hi[a] + slack - oa) * ia;
+        let order = t0.simd_lt(t1);
+        let (first, last) = (order.bitselect(t0, t1), order.bitselect(t1, t0));
+        near = near.simd_ge(first).bitselect(near, first);
+        far = far.simd_le(last).bitselect(far, last);
+    }
+    let pass = if t_max.is_nan() { 0xF } else { 0 };
+    ((near.simd_le(far) | !slack.is_finite()).to_bitmask() & 0xF) | pass
 }
 
 impl<const N: usize> PacketBoxes<N> {
@@ -472,6 +506,19 @@ mod tests {
             let packet = pb.reaching(&b, 1 << l, &t) != 0;
             let one = ray_reaches(&b, &rays[l], t_max);
             assert_eq!(one, packet, "round {round}: {:?} to {t_max} against {b:?}", rays[l]);
+            // Four boxes at once: this box in lane `round % 4`, others beside it.
+            let mut four = [
+                random_box(&mut rng),
+                random_box(&mut rng),
+                Aabb::EMPTY,
+                random_box(&mut rng),
+            ];
+            four[round % 4] = b;
+            let quad = ray_reaches_quad(&BoxQuad::pack(&four), &rays[l], t_max);
+            for (i, bi) in four.iter().enumerate() {
+                let want = ray_reaches(bi, &rays[l], t_max);
+                assert_eq!(quad >> i & 1 != 0, want, "round {round} box {i}: quad against {bi:?}");
+            }
             let (_, _, exact) = b.clip_lanes(&rays, 1 << l, &t);
             assert!(one || exact == 0, "round {round}: a ray that meets the box was dropped");
             if one {
