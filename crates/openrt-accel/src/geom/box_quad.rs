@@ -32,6 +32,15 @@ impl BoxQuad {
         }
     }
 
+    /// Per box, the largest magnitude among its six coordinates (`maxps`
+    /// in a fixed order: the scale of the slack every box test of the
+    /// packets and single rays adds).
+    #[inline]
+    pub(crate) fn largest_coordinate(&self) -> f32x4 {
+        let m = |a: usize| self.min[a].abs().fast_max(self.max[a].abs());
+        m(0).fast_max(m(1)).fast_max(m(2))
+    }
+
     /// `true` when both quads hold the same bits.
     #[must_use]
     pub(crate) fn same_bits(&self, other: &Self) -> bool {

@@ -197,10 +197,8 @@ pub fn ray_reaches_quad(quad: &BoxQuad, ray: &Ray, t_max: f32) -> u32 {
         return 0xF;
     }
     let (lo, hi) = (quad.min, quad.max);
-    let abs_max = |a: usize| lo[a].abs().fast_max(hi[a].abs());
-    let scale = abs_max(0)
-        .fast_max(abs_max(1))
-        .fast_max(abs_max(2))
+    let scale = quad
+        .largest_coordinate()
         .fast_max(f32x4::splat(0.0f32.max(o.abs().max_element())));
     let slack = f32x4::splat(BOX_SLACK) * scale;
     let (o, inv) = (o.to_array(), inv.to_array());

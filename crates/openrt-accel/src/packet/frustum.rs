@@ -312,13 +312,9 @@ impl Frustum {
         let [k, a, b] = self.axes;
         let o = self.origin;
         let (lo, hi) = (quad.min, quad.max);
-        let abs_max = |i: usize| lo[i].abs().fast_max(hi[i].abs());
         // `max` over the box's corners and the origin, as the scalar
         // `max_element` (finite boxes: no NaN to order).
-        let scale = abs_max(0)
-            .fast_max(abs_max(1))
-            .fast_max(abs_max(2))
-            .fast_max(f32x4::splat(o.abs().max_element()));
+        let scale = quad.largest_coordinate().fast_max(f32x4::splat(o.abs().max_element()));
         let slack = f32x4::splat(FRUSTUM_MARGIN) * scale;
         let forward = self.sign.to_array()[0] > 0.0;
         let range = |axis: usize| {

@@ -81,11 +81,7 @@ impl PacketInterval {
         }
         let (lo, hi) = (quad.min, quad.max);
         // The slack of `reaching`, box by box.
-        let abs_max = |a: usize| lo[a].abs().fast_max(hi[a].abs());
-        let scale = abs_max(0)
-            .fast_max(abs_max(1))
-            .fast_max(abs_max(2))
-            .fast_max(f32x4::splat(self.scale));
+        let scale = quad.largest_coordinate().fast_max(f32x4::splat(self.scale));
         let slack = f32x4::splat(BOX_SLACK) * scale;
         let finite = slack.is_finite();
         let mut near = f32x4::splat(self.t_min);
