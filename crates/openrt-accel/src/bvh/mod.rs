@@ -134,11 +134,7 @@ impl<'a, const N: usize> Prepared<'a, N> {
 
     /// The packet's culling: its frustum, else intervals over its lanes.
     fn cull(&self, live: u32) -> packet::Cull<'_> {
-        match (self.frustum(), self.laid_out.or(self.own_boxes.as_ref())) {
-            (Some(f), _) => packet::Cull::Frustum(f),
-            (None, Some(boxes)) => packet::Cull::of(None, boxes, live),
-            (None, None) => packet::Cull::None,
-        }
+        packet::Cull::of(self.frustum(), self.laid_out.or(self.own_boxes.as_ref()), live)
     }
 }
 

@@ -92,9 +92,7 @@ impl LaneRays {
             near = near.fast_max(t1.fast_min(t2));
             far = far.fast_min(t1.fast_max(t2));
         }
-        let far = (far * f32x4::splat(FAR_WIDEN)).fast_min(closest);
-        let near = near - near.abs() * f32x4::splat(NEAR_SLACK);
-        (near.simd_le(far).to_bitmask() & 0xF, near)
+        decide(near, far, closest)
     }
 
     /// The same test for one lane `l` against all four children of `node`
@@ -112,10 +110,18 @@ impl LaneRays {
             near = near.fast_max(t1.fast_min(t2));
             far = far.fast_min(t1.fast_max(t2));
         }
-        let far = (far * f32x4::splat(FAR_WIDEN)).fast_min(f32x4::splat(closest));
-        let near = near - near.abs() * f32x4::splat(NEAR_SLACK);
-        (near.simd_le(far).to_bitmask() & 0xF, near)
+        decide(near, far, f32x4::splat(closest))
     }
+}
+
+/// The end of both lane tests: the far distances widened (Ize 2013) and
+/// cut at `closest`, the near ones lowered by [`NEAR_SLACK`]; the boxes
+/// met and their entries.
+#[inline]
+fn decide(near: f32x4, far: f32x4, closest: f32x4) -> (u32, f32x4) {
+    let far = (far * f32x4::splat(FAR_WIDEN)).fast_min(closest);
+    let near = near - near.abs() * f32x4::splat(NEAR_SLACK);
+    (near.simd_le(far).to_bitmask() & 0xF, near)
 }
 
 /// Whole-packet culling of a node's children.
@@ -130,10 +136,16 @@ pub(crate) enum Cull<'a> {
 
 impl Cull<'_> {
     /// The packet's culling: its frustum, else intervals over its lanes.
-    pub(crate) fn of<'a, const N: usize>(frustum: Option<&'a Frustum>, boxes: &PacketBoxes<N>, lanes: u32) -> Cull<'a> {
-        match frustum {
-            Some(f) => Cull::Frustum(f),
-            None => PacketInterval::new(boxes, lanes).map_or(Cull::None, Cull::Interval),
+    /// (`boxes`: the lanes laid out, needed only without a frustum).
+    pub(crate) fn of<'a, const N: usize>(
+        frustum: Option<&'a Frustum>,
+        boxes: Option<&PacketBoxes<N>>,
+        lanes: u32,
+    ) -> Cull<'a> {
+        match (frustum, boxes) {
+            (Some(f), _) => Cull::Frustum(f),
+            (None, Some(b)) => PacketInterval::new(b, lanes).map_or(Cull::None, Cull::Interval),
+            (None, None) => Cull::None,
         }
     }
 

@@ -238,7 +238,7 @@ fn the_lane_test_of_four_children_equals_the_group_and_single_ray_tests() {
             let (mask, near) = lr.test_lane(&node, l, closest[l]);
             let mask = mask & ((1 << used) - 1);
             let (g, j) = (l / 4, l % 4);
-            let bound = f32x4_of(std::array::from_fn(|i| closest[g * 4 + i]));
+            let bound = wide::f32x4::new(std::array::from_fn(|i| closest[g * 4 + i]));
             for i in 0..used {
                 let (hits, nears) = lr.test(&node, i, g, bound);
                 assert_eq!(mask >> i & 1, hits >> j & 1, "case {k} lane {l} child {i}");
@@ -256,10 +256,6 @@ fn the_lane_test_of_four_children_equals_the_group_and_single_ray_tests() {
         }
     }
     assert!(met > 5_000, "{met} boxes met: the sweep tests too little");
-}
-
-fn f32x4_of(v: [f32; 4]) -> wide::f32x4 {
-    wide::f32x4::new(v)
 }
 
 #[test]
