@@ -54,7 +54,8 @@ fn have_xvfb() -> bool {
 fn the_viewer_renders_the_kitchen_in_a_real_window() {
     let Some(bart) = available() else { return };
     let _turn = XVFB.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let out = std::env::temp_dir().join(format!("openrt-viewer-smoke-{}.png", std::process::id()));
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("smoke.png");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/kitchen.ron");
     let status = Command::new("timeout")
         .args(["300", "xvfb-run", "-a", "-s", "-screen 0 1280x800x24"])

@@ -42,8 +42,8 @@ fn render(dir: &Path, tag: &str, backend: &str, lanes: Option<&str>, mode: &str,
 
 #[test]
 fn every_forced_width_gives_the_single_ray_bytes() {
-    let dir: PathBuf = std::env::temp_dir().join(format!("openrt-lanes-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir: PathBuf = tmp.path().to_path_buf();
     for mode in ["gl", "whitted"] {
         let want = render(&dir, &format!("single-{mode}"), "kd-single", None, mode, true);
         let bvh_single = render(&dir, &format!("bvh-single-{mode}"), "bvh-single", None, mode, true);

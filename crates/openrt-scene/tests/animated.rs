@@ -39,8 +39,8 @@ fn obj_files_load_through_tobj_and_bad_ones_are_reported() {
     let s = load_ron(&repo().join("scenes/animated.ron")).unwrap();
     let scene = s.ctx.scene();
     assert_eq!(scene.instances()[1].geometry.tree.triangles().len(), 4);
-    let dir = std::env::temp_dir().join(format!("openrt-obj-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let write_scene = |obj: &str| {
         std::fs::write(dir.join("m.obj"), obj).unwrap();
         let scene = dir.join("s.ron");
@@ -72,8 +72,8 @@ fn obj_files_load_through_tobj_and_bad_ones_are_reported() {
 
 #[test]
 fn version_2_features_are_gated_and_checked() {
-    let dir = std::env::temp_dir().join(format!("openrt-v2-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let load = |text: &str| {
         let p = dir.join("s.ron");
         std::fs::write(&p, text).unwrap();

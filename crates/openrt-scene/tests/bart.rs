@@ -128,9 +128,8 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 }
 
 fn parse_err(text: &str) -> SceneError {
-    let dir = std::env::temp_dir().join(format!("openrt-aff-{}-{}", std::process::id(), text.len()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = write(&dir, "t.aff", text);
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "t.aff", text);
     match parse_aff(&p) {
         Ok(_) => panic!("accepted:\n{text}"),
         Err(e) => e,
@@ -185,13 +184,13 @@ fn malformed_aff_files_give_file_and_line() {
 
 #[test]
 fn include_cycles_and_missing_textures_are_errors() {
-    let dir = std::env::temp_dir().join(format!("openrt-aff-cycle-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    write(&dir, "a.aff", "i 0 b.aff\n");
-    let b = write(&dir, "b.aff", "i 0 a.aff\n");
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write(dir, "a.aff", "i 0 b.aff\n");
+    let b = write(dir, "b.aff", "i 0 a.aff\n");
     let e = parse_aff(&b).err().unwrap();
     assert!(e.to_string().contains("deeper than"), "{e}");
-    let t = write(&dir, "tex.aff", "tt missing.ppm\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n");
+    let t = write(dir, "tex.aff", "tt missing.ppm\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n");
     let e = AffPlayer::load(&t).err().unwrap();
     assert!(
         matches!(e, SceneError::Texture { .. }) && e.to_string().contains("missing.ppm"),

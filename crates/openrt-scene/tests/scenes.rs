@@ -139,8 +139,8 @@ fn emission_textures_are_read_and_an_unknown_one_is_named() {
 
 #[test]
 fn a_corrupt_texture_is_an_error_not_a_panic() {
-    let dir = std::env::temp_dir().join(format!("openrt-scene-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     std::fs::write(dir.join("bad.ppm"), b"P6\n64 64\n255\n\x01\x02").unwrap();
     let scene = dir.join("s.ron");
     std::fs::write(
