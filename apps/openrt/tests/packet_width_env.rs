@@ -81,5 +81,4 @@ fn every_forced_width_gives_the_single_ray_bytes() {
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -60,6 +60,8 @@ pub use packet::boxes::{BOX_SLACK, PacketBoxes, ray_reaches, ray_reaches_quad};
 pub use packet::frustum::{FRUSTUM_MARGIN, Frustum, frustum_culling, set_frustum_culling};
 pub use packet::interval::PacketInterval;
 pub use packet::traverse::traverse_packet;
+#[cfg(target_arch = "x86_64")]
+pub use packet::width::avx2;
 pub use packet::width::{MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
 #[cfg(feature = "embree")]
 pub use peers::embree::{EmbreeMesh, EmbreeTwoLevel, embree_medium_build_secs};

@@ -86,7 +86,8 @@ pub(crate) fn highlight_power(x: f32x4, s: f32) -> f32x4 {
 /// loop's hits of different materials): lane `i` is `max(x_i, 0)^s_i`, the
 /// same operations as with one exponent.
 #[must_use]
-#[inline]
+#[allow(clippy::inline_always)]
+#[inline(always)]
 pub(crate) fn highlight_power_lanes(x: f32x4, s: f32x4) -> f32x4 {
     // PERF: no selects on the common path (an SSE2 select is three
     // operations): the mantissa is centred by integer arithmetic, the

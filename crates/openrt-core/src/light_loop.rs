@@ -94,6 +94,8 @@ pub(crate) fn light_sum(
 /// `blocked(j)` gives the lanes whose shadow ray towards light `j` is
 /// blocked. One light at a time, four hits to a register: lanes of
 /// different materials are masked, not taken apart.
+#[allow(clippy::inline_always)]
+#[inline(always)]
 pub(crate) fn light_sum_lanes(
     lights: &[PointLight],
     hits: &[LitHit; 4],

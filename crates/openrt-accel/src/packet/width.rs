@@ -83,6 +83,15 @@ impl PacketWidth {
     }
 }
 
+/// Whether the CPU has AVX2 (detected once).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[must_use]
+pub fn avx2() -> bool {
+    static AVX2: OnceLock<bool> = OnceLock::new();
+    *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
+}
+
 /// The mask of the first `n` lanes.
 #[inline]
 #[must_use]

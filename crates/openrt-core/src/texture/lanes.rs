@@ -70,7 +70,8 @@ pub(crate) fn takes_lanes(t: &Texture, uv: Vec2) -> bool {
 /// Trilinear lookups of four lanes at once: lane `i` is
 /// `texs[i].sample_filtered(uv[i], lod[i], Trilinear)`, bit for bit, for
 /// lanes that [`takes_lanes`] (others: any value).
-#[inline]
+#[allow(clippy::inline_always)]
+#[inline(always)]
 pub(crate) fn trilinear_lanes(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) -> [Vec3; 4] {
     let top = f32x4::from(texs.map(|t| (t.levels.len() - 1) as f32));
     // NOTE: max/min, not clamp: a NaN lod becomes 0 (`maxps` gives its
