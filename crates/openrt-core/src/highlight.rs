@@ -16,8 +16,9 @@
 //! path and the packets, which both shade through this function, give the
 //! same bits.
 
-use wide::bytemuck;
-use wide::{f32x4, i32x4};
+use wide::f32x4;
+
+use crate::simd::{LaneF32, LaneI32};
 
 /// The least exponent `s log2 x` taken: below it (and below -126, where
 /// the result would not be a normal number) the power is zero.
@@ -88,32 +89,32 @@ pub(crate) fn highlight_power(x: f32x4, s: f32) -> f32x4 {
 #[must_use]
 #[allow(clippy::inline_always)]
 #[inline(always)]
-pub(crate) fn highlight_power_lanes(x: f32x4, s: f32x4) -> f32x4 {
+pub(crate) fn highlight_power_lanes<F: LaneF32>(x: F, s: F) -> F {
     // PERF: no selects on the common path (an SSE2 select is three
     // operations): the mantissa is centred by integer arithmetic, the
     // exponent clamped by `minps`/`maxps`, and NaN or non-positive bases
     // masked at the end; subnormal bases take a rare branch.
-    let positive = x.simd_gt(f32x4::ZERO);
-    let tiny = x.simd_lt(f32x4::splat(f32::MIN_POSITIVE));
-    let log2x = if (tiny & positive).any() {
+    let positive = x.gt(F::splat(0.0));
+    let tiny = x.lt(F::splat(f32::MIN_POSITIVE));
+    let log2x = if (tiny & positive).bitmask() != 0 {
         subnormal_log2(x)
     } else {
         log2_normal(x)
     };
     let y = (s * log2x)
-        .fast_max(f32x4::splat(LOWEST_EXPONENT))
-        .fast_min(f32x4::splat(HIGHEST_EXPONENT));
+        .max_fast(F::splat(LOWEST_EXPONENT))
+        .min_fast(F::splat(HIGHEST_EXPONENT));
     // 2^y = 2^n 2^f, n = y rounded to even, |f| <= 1/2: 2^f by a degree-6
     // fit (Chebyshev nodes, 2e-8 relative; exactly 1 at f = 0), its terms
     // grouped to shorten the chain (Estrin).
-    let n = y.fast_round_int();
-    let f = y - f32x4::from_i32x4(n);
-    let [c0, c1, c2, c3, c4, c5, c6] = EXP2_FIT.map(f32x4::splat);
+    let n = y.round_int();
+    let f = y - F::from_int(n);
+    let [c0, c1, c2, c3, c4, c5, c6] = EXP2_FIT.map(F::splat);
     let f2 = f * f;
     let p = (c0 + c1 * f) + f2 * ((c2 + c3 * f) + f2 * ((c4 + c5 * f) + f2 * c6));
     // 2^n from the exponent bits; below the normal range, zero.
-    let normal: f32x4 = bytemuck::cast(n.simd_gt(i32x4::splat(-127)));
-    let scale: f32x4 = bytemuck::cast((n + i32x4::splat(127)) << 23);
+    let normal = n.gt(F::I::splat(-127));
+    let scale = F::from_bits((n + F::I::splat(127)).shl23());
     (p * scale) & normal & positive
 }
 
@@ -131,21 +132,22 @@ pub(crate) fn log2_above_one(x: f32x4) -> f32x4 {
 /// exponent, and `2 atanh(t) / ln 2` of the mantissa `m` moved to
 /// `[sqrt(1/2), sqrt(2))`, `t = (m - 1) / (m + 1)` (`|t| < 0.172`), by the
 /// series' terms to `t^9` (1e-8 relative), grouped as in the caller.
-#[inline]
-fn log2_normal(x: f32x4) -> f32x4 {
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn log2_normal<F: LaneF32>(x: F) -> F {
     const SQRT_HALF_BITS: i32 = 0x3f35_04f3;
-    let bits: i32x4 = bytemuck::cast(x);
+    let bits = x.to_bits();
     // Subtracting the bits of sqrt(1/2) moves the exponent's boundary to
     // the mantissa's centre: the arithmetic shift gives the exponent of
     // `x / sqrt(1/2)` rounded down, the low bits the mantissa's offset.
-    let shifted = bits - i32x4::splat(SQRT_HALF_BITS);
-    let e = f32x4::from_i32x4(shifted >> 23);
-    let m: f32x4 = bytemuck::cast((shifted & i32x4::splat(0x007f_ffff)) + i32x4::splat(SQRT_HALF_BITS));
-    let one = f32x4::ONE;
+    let shifted = bits - F::I::splat(SQRT_HALF_BITS);
+    let e = F::from_int(shifted.shr23());
+    let m = F::from_bits((shifted & F::I::splat(0x007f_ffff)) + F::I::splat(SQRT_HALF_BITS));
+    let one = F::splat(1.0);
     let t = (m - one) / (m + one);
     let t2 = t * t;
     let t4 = t2 * t2;
-    let k = |j: f64| f32x4::splat((2.0 / (std::f64::consts::LN_2 * j)) as f32);
+    let k = |j: f64| F::splat((2.0 / (std::f64::consts::LN_2 * j)) as f32);
     let series = (k(1.0) + t2 * k(3.0)) + t4 * ((k(5.0) + t2 * k(7.0)) + t4 * k(9.0));
     e + t * series
 }
@@ -154,10 +156,10 @@ fn log2_normal(x: f32x4) -> f32x4 {
 /// `2^24` into the normal range, and their logarithm moved back.
 #[cold]
 #[inline(never)]
-fn subnormal_log2(x: f32x4) -> f32x4 {
-    let tiny = x.simd_lt(f32x4::splat(f32::MIN_POSITIVE));
-    let scaled = tiny.bitselect(x * f32x4::splat(16_777_216.0), x);
-    log2_normal(scaled) - (tiny & f32x4::splat(24.0))
+fn subnormal_log2<F: LaneF32>(x: F) -> F {
+    let tiny = x.lt(F::splat(f32::MIN_POSITIVE));
+    let scaled = tiny.select(x * F::splat(16_777_216.0), x);
+    log2_normal(scaled) - (tiny & F::splat(24.0))
 }
 
 #[cfg(test)]

@@ -10,12 +10,13 @@
 //! products, so every colour is the same bits either way (tested).
 
 use glam::{Vec3, Vec3A};
-use openrt_accel::lanes_of;
+use openrt_accel::{MAX_LANES, lanes_of};
 use wide::f32x4;
 
 use crate::PointLight;
 use crate::highlight::{highlight_power_lanes, highlight_powers};
-use crate::light_quad::{Lanes, LightQuad, light_terms, mask_of, terms};
+use crate::light_quad::{Lanes, LightQuad, light_terms, terms};
+use crate::simd::LaneF32;
 
 /// What the light loop needs of one hit.
 // PERF: vectors of four lanes (`Vec3A`): a packet's hits are written with
@@ -89,37 +90,44 @@ pub(crate) fn light_sum(
     Vec3::from(color)
 }
 
-/// [`light_sum`] of up to four hits at once, lane `i` for `hits[i]` where
-/// `lanes` has bit `i` (the other lanes' colours are not defined);
+/// [`light_sum`] of up to [`LaneF32::LANES`] hits at once (four with
+/// `f32x4`, eight with the AVX2 type), written to `out[i]` for `hits[i]`
+/// where `lanes` has bit `i` (the other lanes' colours are not written);
 /// `blocked(j)` gives the lanes whose shadow ray towards light `j` is
-/// blocked. One light at a time, four hits to a register: lanes of
+/// blocked. One light at a time, the hits one to a lane: lanes of
 /// different materials are masked, not taken apart.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-pub(crate) fn light_sum_lanes(
+pub(crate) fn light_sum_lanes<F: LaneF32>(
     lights: &[PointLight],
-    hits: &[LitHit; 4],
+    hits: &[LitHit],
     lanes: u32,
     blocked: impl Fn(usize) -> u32,
-) -> [Vec3; 4] {
-    let each = |f: fn(&LitHit) -> Vec3A| lanes_of_vectors(std::array::from_fn(|i| f(&hits[i])));
+    out: &mut [Vec3],
+) {
+    let hits = &hits[..F::LANES];
+    let each = |f: fn(&LitHit) -> Vec3A| Lanes::<F>::transposed(|i| f(&hits[i]));
     let (p, nf, ns, view) = (each(|h| h.p), each(|h| h.nf), each(|h| h.ns), each(|h| h.view));
     let (kd, specular) = (each(|h| h.kd), each(|h| h.specular));
     let mut color = each(|h| h.base);
-    let shininess = f32x4::from(hits.each_ref().map(|h| h.shininess));
-    let floor = f32x4::from(hits.each_ref().map(|h| h.floor));
-    let bright = (0..4).fold(0, |m, i| m | (u32::from(hits[i].highlights) << i)) & lanes;
-    let bright_mask = mask_of(bright);
+    let shininess = F::from_fn(|i| hits[i].shininess);
+    let floor = F::from_fn(|i| hits[i].floor);
+    let bright = hits
+        .iter()
+        .enumerate()
+        .fold(0, |m, (i, h)| m | (u32::from(h.highlights) << i))
+        & lanes;
+    let bright_mask = F::mask(bright);
     for (j, light) in lights.iter().enumerate() {
         let (ok, ndl, rdv) = terms(&Lanes::splat(light.position), &p, &nf, &ns, &view);
-        let lit = ok.to_bitmask() & lanes & !blocked(j);
+        let lit = ok.bitmask() & lanes & !blocked(j);
         if lit == 0 {
             continue;
         }
         // `f32::max(ndl, 0.0)`: `maxps` gives its second operand for a
         // NaN; a zero's sign may differ, which no sum below shows (every
         // term is added to a colour that is +0 or more).
-        let cos = ndl.fast_max(f32x4::ZERO);
+        let cos = ndl.max_fast(F::splat(0.0));
         let mut c = Lanes {
             x: kd.x * cos,
             y: kd.y * cos,
@@ -128,10 +136,10 @@ pub(crate) fn light_sum_lanes(
         if bright & lit != 0 {
             // As in `highlight_powers`: the powers only when some lit
             // lane's base lies above its floor; zeros (their exact value) otherwise.
-            let power = if rdv.simd_gt(floor).to_bitmask() & bright & lit != 0 {
+            let power = if rdv.gt(floor).bitmask() & bright & lit != 0 {
                 highlight_power_lanes(rdv, shininess)
             } else {
-                f32x4::ZERO
+                F::splat(0.0)
             };
             let lit_c = Lanes {
                 x: c.x + specular.x * power,
@@ -140,22 +148,21 @@ pub(crate) fn light_sum_lanes(
             };
             c = Lanes::select(bright_mask, &lit_c, &c);
         }
-        let (m, lc) = (mask_of(lit), light.color);
+        let (m, lc) = (F::mask(lit), light.color);
         let sum = Lanes {
-            x: color.x + f32x4::splat(lc.x) * c.x,
-            y: color.y + f32x4::splat(lc.y) * c.y,
-            z: color.z + f32x4::splat(lc.z) * c.z,
+            x: color.x + F::splat(lc.x) * c.x,
+            y: color.y + F::splat(lc.y) * c.y,
+            z: color.z + F::splat(lc.z) * c.z,
         };
         color = Lanes::select(m, &sum, &color);
     }
-    color.to_vecs()
-}
-
-/// Four vectors, one to a lane: their registers transposed.
-#[inline]
-fn lanes_of_vectors(v: [Vec3A; 4]) -> Lanes {
-    let [x, y, z, _] = f32x4::transpose(v.map(|v| f32x4::from(<[f32; 4]>::from(v.extend(0.0)))));
-    Lanes { x, y, z }
+    let mut xyz = [[0.0; MAX_LANES]; 3];
+    color.x.write_to(&mut xyz[0]);
+    color.y.write_to(&mut xyz[1]);
+    color.z.write_to(&mut xyz[2]);
+    for i in lanes_of(lanes) {
+        out[i] = Vec3::new(xyz[0][i], xyz[1][i], xyz[2][i]);
+    }
 }
 
 #[cfg(test)]
@@ -209,10 +216,16 @@ mod tests {
         }
     }
 
-    /// Four hits at a time are each hit's own light loop bit for bit, with
-    /// any lanes present and any shadow rays blocked, for 1 to 9 lights.
+    /// Four hits at a time (`f32x4`) and, on a CPU with AVX2, eight (the
+    /// AVX2 type, run where the renderer runs it: in code compiled for
+    /// AVX2) are each hit's own light loop bit for bit, with any lanes
+    /// present and any shadow rays blocked, for 1 to 9 lights.
     #[test]
-    fn hits_four_at_a_time_are_each_hits_own_sum() {
+    fn hits_four_and_eight_at_a_time_are_each_hits_own_sum() {
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = openrt_accel::avx2();
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
         let mut rng = SmallRng::seed_from_u64(0x4c_6f6f70);
         let mut lit = 0;
         for round in 0..4_000 {
@@ -224,24 +237,51 @@ mod tests {
                 })
                 .collect();
             let quads = light_quads(&lights);
-            let hits: [LitHit; 4] = std::array::from_fn(|_| hit(&mut rng, &lights));
-            let lanes = rng.random_range(1..16u32);
+            let hits: [LitHit; 8] = std::array::from_fn(|_| hit(&mut rng, &lights));
+            let lanes = rng.random_range(1..256u32);
             let blocked: Vec<u32> = (0..count)
-                .map(|_| rng.random_range(0..16u32) & rng.random_range(0..16u32))
+                .map(|_| rng.random_range(0..256u32) & rng.random_range(0..256u32))
                 .collect();
-            let got = light_sum_lanes(&lights, &hits, lanes, |j| blocked[j]);
+            let mut fours = [Vec3::NAN; 8];
+            for c in 0..2 {
+                let shifted = |m: u32| (m >> (4 * c)) & 0xf;
+                light_sum_lanes::<f32x4>(
+                    &lights,
+                    &hits[4 * c..],
+                    shifted(lanes),
+                    |j| shifted(blocked[j]),
+                    &mut fours[4 * c..],
+                );
+            }
+            let mut eights = fours;
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                eights = [Vec3::NAN; 8];
+                // SAFETY: the CPU has AVX2 (detected).
+                unsafe { eight_at_a_time(&lights, &hits, lanes, &blocked, &mut eights) };
+            }
             for i in lanes_of(lanes) {
                 let want = light_sum(&lights, &quads, &hits[i], |j| blocked[j] & (1 << i) != 0);
-                assert_eq!(
-                    want.to_array().map(f32::to_bits),
-                    got[i].to_array().map(f32::to_bits),
-                    "round {round}, lane {i}: {:?}",
-                    hits[i]
-                );
+                for (got, width) in [(fours[i], 4), (eights[i], 8)] {
+                    assert_eq!(
+                        want.to_array().map(f32::to_bits),
+                        got.to_array().map(f32::to_bits),
+                        "round {round}, {width} lanes, lane {i}: {:?}",
+                        hits[i]
+                    );
+                }
                 lit += usize::from(want != Vec3::from(hits[i].base));
             }
         }
         // Most hits are lit by something.
         assert!(lit > 3_000, "{lit} lit hits");
+    }
+
+    /// The light loop eight hits at a time, compiled for AVX2 as the
+    /// renderer's shading is.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn eight_at_a_time(lights: &[PointLight], hits: &[LitHit; 8], lanes: u32, blocked: &[u32], out: &mut [Vec3; 8]) {
+        light_sum_lanes::<crate::simd::F32x8>(lights, hits, lanes, |j| blocked[j], out);
     }
 }

@@ -9,10 +9,11 @@
 //! operations in its order (no fused multiply-add), so every value is the
 //! bits of its scalar twin, `light_terms_scalar` in the tests.
 
-use glam::Vec3;
-use wide::{bytemuck, f32x4, i32x4};
+use glam::{Vec3, Vec3A};
+use wide::f32x4;
 
 use crate::PointLight;
+use crate::simd::LaneF32;
 
 /// Four lights' positions, one lane each; lanes past the last light hold
 /// the origin and are masked off.
@@ -65,25 +66,47 @@ pub(crate) fn light_terms(q: &LightQuad, p: Vec3, nf: Vec3, ns: Vec3, view: Vec3
     }
 }
 
-/// Three coordinates of four vectors, one lane each.
+/// Three coordinates of four (or [`LaneF32::LANES`]) vectors, one lane each.
 #[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct Lanes {
-    pub x: f32x4,
-    pub y: f32x4,
-    pub z: f32x4,
+pub(crate) struct Lanes<F = f32x4> {
+    pub x: F,
+    pub y: F,
+    pub z: F,
 }
 
-impl Lanes {
+impl<F: LaneF32> Lanes<F> {
     /// One vector in every lane.
-    #[inline]
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
     pub fn splat(v: Vec3) -> Self {
         Self {
-            x: f32x4::splat(v.x),
-            y: f32x4::splat(v.y),
-            z: f32x4::splat(v.z),
+            x: F::splat(v.x),
+            y: F::splat(v.y),
+            z: F::splat(v.z),
         }
     }
 
+    /// Lanes where `m` is set from `a`, the others from `b`.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub fn select(m: F, a: &Self, b: &Self) -> Self {
+        Self {
+            x: m.select(a.x, b.x),
+            y: m.select(a.y, b.y),
+            z: m.select(a.z, b.z),
+        }
+    }
+
+    /// The vectors `v(i)`, one to a lane.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub fn transposed(v: impl Fn(usize) -> Vec3A) -> Self {
+        let [x, y, z] = F::transpose(v);
+        Self { x, y, z }
+    }
+}
+
+impl Lanes {
     /// Four vectors, one to a lane.
     #[inline]
     pub fn from_vecs(v: [Vec3; 4]) -> Self {
@@ -91,16 +114,6 @@ impl Lanes {
             x: f32x4::from(v.map(|v| v.x)),
             y: f32x4::from(v.map(|v| v.y)),
             z: f32x4::from(v.map(|v| v.z)),
-        }
-    }
-
-    /// Lanes where `m` is set from `a`, the others from `b`.
-    #[inline]
-    pub fn select(m: f32x4, a: &Self, b: &Self) -> Self {
-        Self {
-            x: m.bitselect(a.x, b.x),
-            y: m.bitselect(a.y, b.y),
-            z: m.bitselect(a.z, b.z),
         }
     }
 
@@ -115,8 +128,7 @@ impl Lanes {
 /// A lane mask (all bits set) for each bit of `bits`' low four.
 #[inline]
 pub(crate) fn mask_of(bits: u32) -> f32x4 {
-    let lane = i32x4::from([1, 2, 4, 8]);
-    bytemuck::cast((i32x4::splat(bits.cast_signed()) & lane).simd_eq(lane))
+    <f32x4 as LaneF32>::mask(bits)
 }
 
 /// The light terms of four (light, hit) pairs, one to a lane: lights at
@@ -125,9 +137,16 @@ pub(crate) fn mask_of(bits: u32) -> f32x4 {
 /// and `r·v`. Four lights of one hit ([`light_terms`]) and one light of four
 /// hits (the lane-parallel light loop) both come here, so every lane is the
 /// same sequence of operations either way.
-#[inline]
-pub(crate) fn terms(light: &Lanes, p: &Lanes, nf: &Lanes, ns: &Lanes, view: &Lanes) -> (f32x4, f32x4, f32x4) {
-    let s = f32x4::splat;
+#[allow(clippy::inline_always)]
+#[inline(always)]
+pub(crate) fn terms<F: LaneF32>(
+    light: &Lanes<F>,
+    p: &Lanes<F>,
+    nf: &Lanes<F>,
+    ns: &Lanes<F>,
+    view: &Lanes<F>,
+) -> (F, F, F) {
+    let s = F::splat;
     let (lit, Lanes { x: lx, y: ly, z: lz }) = towards(light, p, nf);
     let ndl = ns.x * lx + ns.y * ly + ns.z * lz;
     // `reflect(-l, ns)`: `d - (2 * d·n) * n` with `d = -l`.
@@ -143,17 +162,18 @@ pub(crate) fn terms(light: &Lanes, p: &Lanes, nf: &Lanes, ns: &Lanes, view: &Lan
 /// directions to the light: the shading's `lit_side` (`try_normalize`,
 /// then `l·nf > 0`) four lanes at a time, its operations in its order.
 /// The light loop ([`terms`]) and the shadow rays' set-up both decide here.
-#[inline]
-pub(crate) fn towards(light: &Lanes, p: &Lanes, nf: &Lanes) -> (f32x4, Lanes) {
-    let s = f32x4::splat;
+#[allow(clippy::inline_always)]
+#[inline(always)]
+pub(crate) fn towards<F: LaneF32>(light: &Lanes<F>, p: &Lanes<F>, nf: &Lanes<F>) -> (F, Lanes<F>) {
+    let s = F::splat;
     // The direction to the light, normalized as `Vec3::try_normalize` does:
     // `((x*x + y*y) + z*z)`, a square root, `1 / len`, then three products.
     let (tx, ty, tz) = (light.x - p.x, light.y - p.y, light.z - p.z);
     let rcp = s(1.0) / (tx * tx + ty * ty + tz * tz).sqrt();
     // `rcp.is_finite() && rcp > 0.0`; a NaN fails both compares.
-    let ok = rcp.simd_gt(s(0.0)) & rcp.simd_lt(s(f32::INFINITY));
+    let ok = rcp.gt(s(0.0)) & rcp.lt(s(f32::INFINITY));
     let (lx, ly, lz) = (tx * rcp, ty * rcp, tz * rcp);
-    let facing = (lx * nf.x + ly * nf.y + lz * nf.z).simd_gt(s(0.0));
+    let facing = (lx * nf.x + ly * nf.y + lz * nf.z).gt(s(0.0));
     (ok & facing, Lanes { x: lx, y: ly, z: lz })
 }
 

@@ -1,7 +1,7 @@
 //! Whitted ray tracing and the "OpenGL-like" local shading mode.
 
 use glam::{Vec3, Vec3A};
-use openrt_accel::{Ray, lanes_of, rays_from_lanes, sign_groups};
+use openrt_accel::{Ray, lanes_mask, lanes_of, rays_from_lanes, sign_groups};
 use wide::f32x4;
 
 use crate::highlight::{highlight_powers, log2_above_one};
@@ -9,6 +9,7 @@ use crate::light_loop::{LitHit, light_sum, light_sum_lanes};
 use crate::light_quad::{Lanes, LightQuad, light_terms, towards};
 use crate::occluder_hint::OccluderHint;
 use crate::phases::{Phase, PhaseClock};
+use crate::simd::LaneF32;
 use crate::surface_lanes::Facing;
 use crate::tracer::Tracer;
 use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
@@ -749,7 +750,7 @@ impl<T: Tracer> Shader<'_, T> {
             unsafe { self.shade_block_avx2::<N, ON>(rays, cones, lanes, depth, block) };
             return;
         }
-        self.shade_block_body::<N, ON>(rays, cones, lanes, depth, block);
+        self.shade_block_body::<N, ON, f32x4>(rays, cones, lanes, depth, block);
     }
 
     /// [`Shader::shade_block_as`] compiled for AVX2: the body and what it
@@ -764,14 +765,14 @@ impl<T: Tracer> Shader<'_, T> {
         depth: u32,
         block: &mut ShadedBlock<N>,
     ) {
-        self.shade_block_body::<N, ON>(rays, cones, lanes, depth, block);
+        self.shade_block_body::<N, ON, crate::simd::F32x8>(rays, cones, lanes, depth, block);
     }
 
     /// [`Shader::shade_block_as`] for whichever instruction set the caller
     /// is compiled for.
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    fn shade_block_body<const N: usize, const ON: bool>(
+    fn shade_block_body<const N: usize, const ON: bool, F: LaneF32>(
         &mut self,
         rays: &[Ray; N],
         cones: &[Cone; N],
@@ -831,22 +832,28 @@ impl<T: Tracer> Shader<'_, T> {
         }
         let t = self.clock.stop::<ON>(t, Phase::Textures);
         let whitted = self.mode == RenderMode::Whitted;
-        for (c, four) in hits.as_chunks::<4>().0.iter().enumerate() {
-            let bits = (have >> (4 * c)) & 0xf;
+        // The light loop `F::LANES` hits at a time (a divisor of `N`).
+        let w = F::LANES;
+        debug_assert_eq!(N % w, 0, "{w} lanes do not divide a packet of {N}");
+        for c in 0..N / w {
+            let bits = (have >> (w * c)) & lanes_mask(w);
             if bits == 0 {
                 continue;
             }
             let blocked = |j: usize| {
                 if whitted {
-                    blocked.get(j).map_or(0, |m| (m >> (4 * c)) & 0xf)
+                    blocked.get(j).map_or(0, |m| (m >> (w * c)) & lanes_mask(w))
                 } else {
                     0
                 }
             };
-            let colors = light_sum_lanes(&self.env.lights, four, bits, blocked);
-            for i in lanes_of(bits) {
-                block.color[4 * c + i] = colors[i];
-            }
+            light_sum_lanes::<F>(
+                &self.env.lights,
+                &hits[w * c..],
+                bits,
+                blocked,
+                &mut block.color[w * c..],
+            );
         }
         for l in lanes_of(lanes) {
             if let Some(p) = &preps[l] {
