@@ -412,12 +412,12 @@ mod tests {
                 let want = highlight_power_lanes(four(&x), four(&s)).to_array();
                 let q = Lanes::<f32x4>::transposed(|i| p[4 * c + i]);
                 let (want_ok, l) = towards(&Lanes::splat(light), &q, &q);
-                for i in 0..4 {
+                for (i, want) in want.iter().enumerate() {
                     let lane = 4 * c + i;
                     subnormal += usize::from(x[lane] > 0.0 && x[lane] < f32::MIN_POSITIVE);
                     assert_eq!(
                         power[lane].to_bits(),
-                        want[i].to_bits(),
+                        want.to_bits(),
                         "round {round}, lane {lane}: {} ^ {}",
                         x[lane],
                         s[lane]
