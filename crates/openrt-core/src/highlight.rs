@@ -109,7 +109,15 @@ pub(crate) fn highlight_power_lanes<F: LaneF32>(x: F, s: F) -> F {
     // grouped to shorten the chain (Estrin).
     let n = y.round_int();
     let f = y - F::from_int(n);
-    let [c0, c1, c2, c3, c4, c5, c6] = EXP2_FIT.map(F::splat);
+    let [c0, c1, c2, c3, c4, c5, c6] = [
+        F::splat(EXP2_FIT[0]),
+        F::splat(EXP2_FIT[1]),
+        F::splat(EXP2_FIT[2]),
+        F::splat(EXP2_FIT[3]),
+        F::splat(EXP2_FIT[4]),
+        F::splat(EXP2_FIT[5]),
+        F::splat(EXP2_FIT[6]),
+    ];
     let f2 = f * f;
     let p = (c0 + c1 * f) + f2 * ((c2 + c3 * f) + f2 * ((c4 + c5 * f) + f2 * c6));
     // 2^n from the exponent bits; below the normal range, zero.
@@ -147,8 +155,15 @@ fn log2_normal<F: LaneF32>(x: F) -> F {
     let t = (m - one) / (m + one);
     let t2 = t * t;
     let t4 = t2 * t2;
-    let k = |j: f64| F::splat((2.0 / (std::f64::consts::LN_2 * j)) as f32);
-    let series = (k(1.0) + t2 * k(3.0)) + t4 * ((k(5.0) + t2 * k(7.0)) + t4 * k(9.0));
+    let k = |j: f64| (2.0 / (std::f64::consts::LN_2 * j)) as f32;
+    let [k1, k3, k5, k7, k9] = [
+        F::splat(k(1.0)),
+        F::splat(k(3.0)),
+        F::splat(k(5.0)),
+        F::splat(k(7.0)),
+        F::splat(k(9.0)),
+    ];
+    let series = (k1 + t2 * k3) + t4 * ((k5 + t2 * k7) + t4 * k9);
     e + t * series
 }
 

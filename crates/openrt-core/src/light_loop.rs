@@ -106,10 +106,14 @@ pub(crate) fn light_sum_lanes<F: LaneF32>(
     out: &mut [Vec3],
 ) {
     let hits = &hits[..F::LANES];
-    let each = |f: fn(&LitHit) -> Vec3A| Lanes::<F>::transposed(|i| f(&hits[i]));
-    let (p, nf, ns, view) = (each(|h| h.p), each(|h| h.nf), each(|h| h.ns), each(|h| h.view));
-    let (kd, specular) = (each(|h| h.kd), each(|h| h.specular));
-    let mut color = each(|h| h.base);
+    // NOTE: no closure makes lanes (simd.rs): `transposed` is inlined.
+    let (p, nf) = (Lanes::<F>::transposed(|i| hits[i].p), Lanes::transposed(|i| hits[i].nf));
+    let (ns, view) = (Lanes::transposed(|i| hits[i].ns), Lanes::transposed(|i| hits[i].view));
+    let (kd, specular) = (
+        Lanes::<F>::transposed(|i| hits[i].kd),
+        Lanes::<F>::transposed(|i| hits[i].specular),
+    );
+    let mut color = Lanes::<F>::transposed(|i| hits[i].base);
     let shininess = F::from_fn(|i| hits[i].shininess);
     let floor = F::from_fn(|i| hits[i].floor);
     let bright = hits

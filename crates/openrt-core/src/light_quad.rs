@@ -116,19 +116,6 @@ impl Lanes {
             z: f32x4::from(v.map(|v| v.z)),
         }
     }
-
-    /// The four vectors back, one per lane.
-    #[inline]
-    pub fn to_vecs(self) -> [Vec3; 4] {
-        let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
-        std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
-    }
-}
-
-/// A lane mask (all bits set) for each bit of `bits`' low four.
-#[inline]
-pub(crate) fn mask_of(bits: u32) -> f32x4 {
-    <f32x4 as LaneF32>::mask(bits)
 }
 
 /// The light terms of four (light, hit) pairs, one to a lane: lights at

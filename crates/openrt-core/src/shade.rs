@@ -11,6 +11,7 @@ use crate::occluder_hint::OccluderHint;
 use crate::phases::{Phase, PhaseClock};
 use crate::simd::LaneF32;
 use crate::surface_lanes::Facing;
+use crate::surface_lanes::MAX_SURFACE_LANES;
 use crate::tracer::Tracer;
 use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
@@ -342,11 +343,11 @@ impl<T: Tracer> Shader<'_, T> {
     }
 
     /// [`Shader::prepare`] of a packet's `lanes` into `preps`: the surfaces
-    /// four lanes at a time ([`Scene::own_surfaces`]); a lane that passes
-    /// through a one-sided surface goes on alone.
+    /// `F::LANES` lanes at a time ([`Scene::own_surfaces`]); a lane that
+    /// passes through a one-sided surface goes on alone.
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    fn prepare_lanes<const N: usize>(
+    fn prepare_lanes<const N: usize, F: LaneF32>(
         &self,
         rays: &[Ray; N],
         cones: &[Cone; N],
@@ -354,27 +355,29 @@ impl<T: Tracer> Shader<'_, T> {
         lanes: u32,
         preps: &mut [Option<Prepared>; N],
     ) {
-        for c in 0..N / 4 {
-            let bits = (lanes >> (4 * c)) & 0xf;
+        let w = F::LANES;
+        for c in 0..N / w {
+            let bits = (lanes >> (w * c)) & lanes_mask(w);
             if bits == 0 {
                 continue;
             }
-            let hit = |i: usize| hits[4 * c + i].as_ref().filter(|_| bits & (1 << i) != 0);
-            let four = std::array::from_fn(|i| &rays[4 * c + i]);
-            self.scene
-                .own_surfaces(four, std::array::from_fn(hit), |i, surf, facing| {
-                    let l = 4 * c + i;
-                    let Some(h) = hit(i) else {
-                        return;
-                    };
-                    preps[l] = if self.passes_through(&surf, rays[l].dir) {
-                        self.prepare(&rays[l], cones[l], Some(h))
-                    } else {
-                        let mut cone = cones[l];
-                        cone.width = cone.width_for(h.t, facing.len);
-                        Some(self.prepared_facing(cone, surf, facing))
-                    };
-                });
+            let hit = |i: usize| hits[w * c + i].as_ref().filter(|_| bits & (1 << i) != 0);
+            let some: [&Ray; MAX_SURFACE_LANES] = std::array::from_fn(|i| &rays[(w * c + i) % N]);
+            let their: [Option<&SceneHit>; MAX_SURFACE_LANES] =
+                std::array::from_fn(|i| if i < w { hit(i) } else { None });
+            self.scene.own_surfaces::<F>(&some, &their, |i, surf, facing| {
+                let l = w * c + i;
+                let Some(h) = hit(i) else {
+                    return;
+                };
+                preps[l] = if self.passes_through(&surf, rays[l].dir) {
+                    self.prepare(&rays[l], cones[l], Some(h))
+                } else {
+                    let mut cone = cones[l];
+                    cone.width = cone.width_for(h.t, facing.len);
+                    Some(self.prepared_facing(cone, surf, facing))
+                };
+            });
         }
     }
 
@@ -785,7 +788,7 @@ impl<T: Tracer> Shader<'_, T> {
         let t = self.clock.stop::<ON>(t, query_phase(depth));
         // PERF: filled in place (`from_fn` moved each lane's result twice).
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
-        self.prepare_lanes(rays, cones, &hits, lanes, &mut preps);
+        self.prepare_lanes::<N, F>(rays, cones, &hits, lanes, &mut preps);
         let t = self.clock.stop::<ON>(t, Phase::Surface);
         let mut blocked = Vec::new();
         if self.mode == RenderMode::Whitted {
@@ -1205,7 +1208,7 @@ mod tests {
             let shader = Shader::new(&scene, &*scene, &env, RenderMode::Whitted, 0, TextureFilter::Trilinear);
             let lanes: u32 = rng.random_range(0..=u32::MAX) & 0xffff;
             let mut preps: [Option<Prepared>; 16] = [const { None }; 16];
-            shader.prepare_lanes(&rays, &[Cone::default(); 16], &hits, lanes, &mut preps);
+            shader.prepare_lanes::<16, f32x4>(&rays, &[Cone::default(); 16], &hits, lanes, &mut preps);
             let chunks = ShadowLanes::gather(&preps);
             for (j, light) in env.lights.iter().enumerate() {
                 let keep = rays[0];

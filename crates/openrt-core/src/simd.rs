@@ -13,7 +13,12 @@
 
 // NOTE: every lane operation is forced inline: an operation left as a call
 // would pass its registers through memory, and the AVX2 type's would run
-// outside the AVX2-compiled code that may execute it.
+// outside the AVX2-compiled code that may execute it. For the same reason
+// the kernels over `LaneF32` keep lane arithmetic out of closures (a
+// closure is a function of its own, compiled without AVX2 unless inlined,
+// and then every intrinsic in it is a call; so is the cold, never inlined
+// `highlight::subnormal_log2`, the only caller of `core_arch`'s AVX
+// functions in the binary, `objdump -d` shows).
 #![allow(clippy::inline_always)]
 
 use std::ops::{Add, BitAnd, Div, Mul, Neg, Sub};
@@ -51,6 +56,15 @@ pub(crate) trait LaneF32:
     /// `self < o`, a mask (false for NaN).
     #[must_use]
     fn lt(self, o: Self) -> Self;
+    /// `self == o`, a mask (false for NaN).
+    #[must_use]
+    fn eq(self, o: Self) -> Self;
+    /// The sign bits cleared.
+    #[must_use]
+    fn abs(self) -> Self;
+    /// The sign bits flipped where the mask `m` is set.
+    #[must_use]
+    fn flip_sign(self, m: Self) -> Self;
     /// `maxps`: `o` where either lane is NaN.
     #[must_use]
     fn max_fast(self, o: Self) -> Self;
@@ -118,6 +132,18 @@ impl LaneF32 for f32x4 {
     #[inline(always)]
     fn lt(self, o: Self) -> Self {
         self.simd_lt(o)
+    }
+    #[inline(always)]
+    fn eq(self, o: Self) -> Self {
+        self.simd_eq(o)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32x4::abs(self)
+    }
+    #[inline(always)]
+    fn flip_sign(self, m: Self) -> Self {
+        self ^ (m & f32x4::splat(-0.0))
     }
     #[inline(always)]
     fn max_fast(self, o: Self) -> Self {
@@ -198,7 +224,7 @@ mod avx2 {
     // shading, where the light loop takes eight hits to a register
     // instead of four.
     use std::arch::x86_64::{
-        __m128, __m256, __m256i, _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_epi32, _mm256_add_ps, _mm256_and_ps,
+        __m128, __m256, __m256i, _CMP_EQ_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_epi32, _mm256_add_ps, _mm256_and_ps,
         _mm256_and_si256, _mm256_andnot_ps, _mm256_castps_si256, _mm256_castsi256_ps, _mm256_cmp_ps,
         _mm256_cmpeq_epi32, _mm256_cmpgt_epi32, _mm256_cvtepi32_ps, _mm256_cvtps_epi32, _mm256_div_ps, _mm256_max_ps,
         _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set_m128, _mm256_set1_epi32,
@@ -278,6 +304,19 @@ mod avx2 {
             Self(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0) })
         }
         #[inline(always)]
+        fn eq(self, o: Self) -> Self {
+            Self(unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            // `wide`'s: the sign bits cleared by a mask.
+            Self(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
+        }
+        #[inline(always)]
+        fn flip_sign(self, m: Self) -> Self {
+            Self(unsafe { _mm256_xor_ps(self.0, _mm256_and_ps(m.0, _mm256_set1_ps(-0.0))) })
+        }
+        #[inline(always)]
         fn max_fast(self, o: Self) -> Self {
             Self(unsafe { _mm256_max_ps(self.0, o.0) })
         }
@@ -318,14 +357,17 @@ mod avx2 {
         }
         #[inline(always)]
         fn transpose(v: impl Fn(usize) -> Vec3A) -> [Self; 3] {
-            let (lo, hi) = (
-                <f32x4 as LaneF32>::transpose(&v),
-                <f32x4 as LaneF32>::transpose(|i| v(4 + i)),
-            );
-            std::array::from_fn(|k| {
-                let (lo, hi): (__m128, __m128) = (bytemuck::cast(lo[k]), bytemuck::cast(hi[k]));
-                Self(unsafe { _mm256_set_m128(hi, lo) })
-            })
+            let [lx, ly, lz] = <f32x4 as LaneF32>::transpose(&v);
+            let [hx, hy, hz] = <f32x4 as LaneF32>::transpose(|i| v(4 + i));
+            let (lx, ly, lz): (__m128, __m128, __m128) = (bytemuck::cast(lx), bytemuck::cast(ly), bytemuck::cast(lz));
+            let (hx, hy, hz): (__m128, __m128, __m128) = (bytemuck::cast(hx), bytemuck::cast(hy), bytemuck::cast(hz));
+            unsafe {
+                [
+                    Self(_mm256_set_m128(hx, lx)),
+                    Self(_mm256_set_m128(hy, ly)),
+                    Self(_mm256_set_m128(hz, lz)),
+                ]
+            }
         }
     }
 

@@ -1,33 +1,45 @@
-//! Surfaces of four hits at once: [`Scene::own_surface`] lane-parallel.
+//! Surfaces of four (or eight) hits at once: [`Scene::own_surface`]
+//! lane-parallel.
 //!
-//! A packet's hits are reconstructed four to a register: each lane's
-//! vertices, vertex normals and texture coordinates are gathered straight
-//! into lane arrays (a packet's lanes mostly share one instance, whose
-//! transform is broadcast), then normals, the hit point, its error scale
-//! and the areas for the texture's level of detail are computed for the
-//! four lanes together with the scalar function's operations in its order:
-//! every field is its bits (tested against it on seeded scenes).
+//! A packet's hits are reconstructed [`LaneF32::LANES`] to a register (four
+//! with `f32x4`, eight with the AVX2 type in the AVX2-compiled shading):
+//! each lane's vertices, vertex normals and texture coordinates are
+//! gathered straight into lane arrays (a packet's lanes mostly share one
+//! instance, whose transform is broadcast), then normals, the hit point,
+//! its error scale and the areas for the texture's level of detail are
+//! computed for the lanes together with the scalar function's operations
+//! in its order: every field is its bits (tested against it on seeded
+//! scenes, four and eight lanes).
 
-use glam::{Affine3A, Mat3, Vec2, Vec3};
+use glam::{Mat3, Vec2, Vec3, Vec3A};
 use openrt_accel::Ray;
-use wide::f32x4;
 
-use crate::light_quad::{Lanes, mask_of};
+use crate::light_quad::Lanes;
+use crate::simd::LaneF32;
 use crate::{Scene, SceneHit, Surface};
 
-/// Four 3x3 matrices, one lane each, by columns.
-#[derive(Clone, Copy)]
-struct Mat3Lanes([Lanes; 3]);
+/// The most lanes [`Scene::own_surfaces`] takes at once.
+pub(crate) const MAX_SURFACE_LANES: usize = 8;
 
-impl Mat3Lanes {
-    #[inline]
-    fn new(m: [Mat3; 4]) -> Self {
-        Self([0, 1, 2].map(|c| Lanes::from_vecs(m.map(|m| m.col(c)))))
+/// 3x3 matrices, one lane each, by columns.
+#[derive(Clone, Copy)]
+struct Mat3Lanes<F>([Lanes<F>; 3]);
+
+impl<F: LaneF32> Mat3Lanes<F> {
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn new(m: impl Fn(usize) -> Mat3) -> Self {
+        Self([
+            Lanes::transposed(|i| Vec3A::from(m(i).x_axis)),
+            Lanes::transposed(|i| Vec3A::from(m(i).y_axis)),
+            Lanes::transposed(|i| Vec3A::from(m(i).z_axis)),
+        ])
     }
 
     /// `Mat3 * Vec3`: `(x_axis * v.x + y_axis * v.y) + z_axis * v.z`.
-    #[inline]
-    fn mul(&self, v: &Lanes) -> Lanes {
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn mul(&self, v: &Lanes<F>) -> Lanes<F> {
         let [a, b, c] = &self.0;
         Lanes {
             x: a.x * v.x + b.x * v.y + c.x * v.z,
@@ -37,8 +49,9 @@ impl Mat3Lanes {
     }
 }
 
-#[inline]
-fn sub(a: &Lanes, b: &Lanes) -> Lanes {
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn sub<F: LaneF32>(a: &Lanes<F>, b: &Lanes<F>) -> Lanes<F> {
     Lanes {
         x: a.x - b.x,
         y: a.y - b.y,
@@ -46,8 +59,9 @@ fn sub(a: &Lanes, b: &Lanes) -> Lanes {
     }
 }
 
-#[inline]
-fn cross(a: &Lanes, r: &Lanes) -> Lanes {
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn cross<F: LaneF32>(a: &Lanes<F>, r: &Lanes<F>) -> Lanes<F> {
     Lanes {
         x: a.y * r.z - r.y * a.z,
         y: a.z * r.x - r.z * a.x,
@@ -55,16 +69,18 @@ fn cross(a: &Lanes, r: &Lanes) -> Lanes {
     }
 }
 
-#[inline]
-fn dot(a: &Lanes, b: &Lanes) -> f32x4 {
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn dot<F: LaneF32>(a: &Lanes<F>, b: &Lanes<F>) -> F {
     a.x * b.x + a.y * b.y + a.z * b.z
 }
 
-/// `Vec3::normalize_or_zero`, four lanes.
-#[inline]
-fn normalize_or_zero(v: &Lanes) -> Lanes {
-    let rcp = f32x4::ONE / dot(v, v).sqrt();
-    let ok = rcp.simd_gt(f32x4::ZERO) & rcp.simd_lt(f32x4::splat(f32::INFINITY));
+/// `Vec3::normalize_or_zero`, lane by lane.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn normalize_or_zero<F: LaneF32>(v: &Lanes<F>) -> Lanes<F> {
+    let rcp = F::splat(1.0) / dot(v, v).sqrt();
+    let ok = rcp.gt(F::splat(0.0)) & rcp.lt(F::splat(f32::INFINITY));
     Lanes {
         x: (v.x * rcp) & ok,
         y: (v.y * rcp) & ok,
@@ -73,8 +89,9 @@ fn normalize_or_zero(v: &Lanes) -> Lanes {
 }
 
 /// `a * b0 + b * b1 + c * b2`, left to right.
-#[inline]
-fn interpolate(v: &[Lanes; 3], b: &[f32x4; 3]) -> Lanes {
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn interpolate<F: LaneF32>(v: &[Lanes<F>; 3], b: &[F; 3]) -> Lanes<F> {
     Lanes {
         x: v[0].x * b[0] + v[1].x * b[1] + v[2].x * b[2],
         y: v[0].y * b[0] + v[1].y * b[1] + v[2].y * b[2],
@@ -84,16 +101,34 @@ fn interpolate(v: &[Lanes; 3], b: &[f32x4; 3]) -> Lanes {
 
 /// `Vec3::abs().max_element()` (`if a > b { a } else { b }`, which `maxps`
 /// is operand for operand).
-#[inline]
-fn abs_max_element(v: &Lanes) -> f32x4 {
-    v.x.abs().fast_max(v.y.abs().fast_max(v.z.abs()))
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn abs_max_element<F: LaneF32>(v: &Lanes<F>) -> F {
+    v.x.abs().max_fast(v.y.abs().max_fast(v.z.abs()))
+}
+
+/// The lanes' vectors, `out[i]` for lane `i`.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn vectors<F: LaneF32>(v: &Lanes<F>) -> [Vec3; MAX_SURFACE_LANES] {
+    let (x, y, z) = (lane_values(v.x), lane_values(v.y), lane_values(v.z));
+    std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
+}
+
+/// The lanes' values, `out[i]` for lane `i`.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn lane_values<F: LaneF32>(v: F) -> [f32; MAX_SURFACE_LANES] {
+    let mut out = [0.0; MAX_SURFACE_LANES];
+    v.write_to(&mut out);
+    out
 }
 
 /// How a ray meets its hit's surface: the unit direction it arrives in,
 /// its direction's length, the side of the geometric normal it arrives
 /// at, and both normals turned to face it. The shading's first step for
-/// every hit; [`Facing::of`] for one hit, [`Scene::own_surfaces`] for four
-/// at once with the same bits.
+/// every hit; [`Facing::of`] for one hit, [`Scene::own_surfaces`] for a
+/// packet's lanes at once with the same bits.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Facing {
     /// `ray.dir.normalize()`.
@@ -133,33 +168,59 @@ impl Facing {
     }
 }
 
-/// [`Facing::of`] for four lanes: directions `dir`, geometric normals `g`
+/// `v` with its signs flipped in the lanes of the mask `m`.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn flip<F: LaneF32>(v: &Lanes<F>, m: F) -> Lanes<F> {
+    Lanes {
+        x: v.x.flip_sign(m),
+        y: v.y.flip_sign(m),
+        z: v.z.flip_sign(m),
+    }
+}
+
+/// `linear * v + translation`, or `v` in the lanes of the mask `identity`.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn to_world<F: LaneF32>(linear: &Mat3Lanes<F>, translation: &Lanes<F>, identity: F, v: &Lanes<F>) -> Lanes<F> {
+    let l = linear.mul(v);
+    let moved = Lanes {
+        x: l.x + translation.x,
+        y: l.y + translation.y,
+        z: l.z + translation.z,
+    };
+    Lanes::select(identity, v, &moved)
+}
+
+/// Coordinate `a` of the lanes' texture coordinates of vertex `k`.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn uv_lanes<F: LaneF32>(uvs: &[[Vec2; MAX_SURFACE_LANES]; 3], k: usize, a: fn(Vec2) -> f32) -> F {
+    F::from_fn(|i| a(uvs[k][i]))
+}
+
+/// [`Facing::of`] lane by lane: directions `dir`, geometric normals `g`
 /// and shading normals `s` (the same operations: `normalize` is
 /// `dir * (1 / sqrt(dir·dir))`, negation a flip of the sign bit).
-#[inline]
-fn facing_lanes(dir: &Lanes, g: &Lanes, s: &Lanes) -> [Facing; 4] {
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn facing_lanes<F: LaneF32>(dir: &Lanes<F>, g: &Lanes<F>, s: &Lanes<F>) -> [Facing; MAX_SURFACE_LANES] {
     let len = dot(dir, dir).sqrt();
-    let rcp = f32x4::ONE / len;
+    let rcp = F::splat(1.0) / len;
     let d = Lanes {
         x: dir.x * rcp,
         y: dir.y * rcp,
         z: dir.z * rcp,
     };
-    let back = dot(g, &d).simd_gt(f32x4::ZERO);
-    let sign = f32x4::splat(-0.0);
-    let flip = |v: &Lanes, m: f32x4| Lanes {
-        x: v.x ^ (m & sign),
-        y: v.y ^ (m & sign),
-        z: v.z ^ (m & sign),
-    };
+    let back = dot(g, &d).gt(F::splat(0.0));
     let nf = flip(g, back);
-    let ns = flip(s, dot(s, &nf).simd_lt(f32x4::ZERO));
+    let ns = flip(s, dot(s, &nf).lt(F::splat(0.0)));
     let (d, nf, ns, len, back) = (
-        d.to_vecs(),
-        nf.to_vecs(),
-        ns.to_vecs(),
-        len.to_array(),
-        back.to_bitmask(),
+        vectors(&d),
+        vectors(&nf),
+        vectors(&ns),
+        lane_values(len),
+        back.bitmask(),
     );
     std::array::from_fn(|i| Facing {
         d: d[i],
@@ -171,24 +232,27 @@ fn facing_lanes(dir: &Lanes, g: &Lanes, s: &Lanes) -> [Facing; 4] {
 }
 
 impl Scene {
-    /// [`Scene::own_surface`] of the hits of four rays at once: `emit(i,
-    /// surface, facing)` for each lane `i` whose hit is this scene's, the
-    /// same bits as `own_surface` and [`Facing::of`].
+    /// [`Scene::own_surface`] of the hits of `F::LANES` rays at once (the
+    /// first of `rays` and `hits`): `emit(i, surface, facing)` for each
+    /// lane `i` whose hit is this scene's, the same bits as `own_surface`
+    /// and [`Facing::of`].
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    pub(crate) fn own_surfaces(
+    pub(crate) fn own_surfaces<F: LaneF32>(
         &self,
-        rays: [&Ray; 4],
-        hits: [Option<&SceneHit>; 4],
+        rays: &[&Ray],
+        hits: &[Option<&SceneHit>],
         mut emit: impl FnMut(usize, Surface, &Facing),
     ) {
-        let mut found = [None; 4];
-        let mut tri = [[Vec3::ZERO; 4]; 3];
-        let mut nrm = [[Vec3::ZERO; 4]; 3];
-        let mut uvs = [[Vec2::ZERO; 4]; 3];
+        const M: usize = MAX_SURFACE_LANES;
+        let n = F::LANES;
+        let mut found = [None; M];
+        let mut tri = [[Vec3A::ZERO; M]; 3];
+        let mut nrm = [[Vec3A::ZERO; M]; 3];
+        let mut uvs = [[Vec2::ZERO; M]; 3];
         let mut has_normals = 0u32;
-        let (mut b1, mut b2) = ([0.0; 4], [0.0; 4]);
-        for i in 0..4 {
+        let (mut b1, mut b2) = ([0.0; M], [0.0; M]);
+        for i in 0..n {
             let Some(hit) = hits[i].filter(|h| h.frame == self.frame) else {
                 continue;
             };
@@ -200,10 +264,10 @@ impl Scene {
                 continue;
             };
             let sh = &inst.geometry.shading;
-            let (n, uv) = (&sh.normals[p], &sh.uvs[p]);
+            let (nv, uv) = (&sh.normals[p], &sh.uvs[p]);
             for k in 0..3 {
-                tri[k][i] = t[k];
-                nrm[k][i] = n[k];
+                tri[k][i] = t[k].into();
+                nrm[k][i] = nv[k].into();
                 uvs[k][i] = uv[k];
             }
             has_normals |= u32::from(sh.has_normals[p]) << i;
@@ -213,28 +277,36 @@ impl Scene {
         let Some(first) = found.iter().flatten().next().map(|f| f.1) else {
             return;
         };
-        let (b1, b2) = (f32x4::from(b1), f32x4::from(b2));
-        let b = [f32x4::ONE - b1 - b2, b1, b2];
-        let tri = tri.map(Lanes::from_vecs);
+        let (b1, b2) = (F::from_fn(|i| b1[i]), F::from_fn(|i| b2[i]));
+        let b = [F::splat(1.0) - b1 - b2, b1, b2];
+        // NOTE: no closure makes lanes (simd.rs).
+        let tri = [
+            Lanes::<F>::transposed(|i| tri[0][i]),
+            Lanes::transposed(|i| tri[1][i]),
+            Lanes::transposed(|i| tri[2][i]),
+        ];
         // PERF: a packet's lanes mostly hit one instance: its transform is
         // broadcast, and an identity transform skips the products.
         let shared = found.iter().flatten().all(|f| std::ptr::eq(f.1, first));
         let transform = if shared && first.identity {
             None
         } else {
-            let each = |f: &dyn Fn(usize) -> Affine3A| std::array::from_fn::<Affine3A, 4, _>(f);
             let inst = |i: usize| found[i].map_or(first, |f| f.1);
-            let to_world = each(&|i| inst(i).to_world);
             Some((
-                mask_of((0..4).fold(0, |m, i| m | (u32::from(inst(i).identity) << i))),
-                Mat3Lanes::new(std::array::from_fn(|i| inst(i).normal_matrix)),
-                f32x4::from(std::array::from_fn::<f32, 4, _>(|i| inst(i).det_sign)),
-                Mat3Lanes::new(to_world.map(|a| Mat3::from(a.matrix3))),
-                Lanes::from_vecs(to_world.map(|a| Vec3::from(a.translation))),
+                F::mask((0..n).fold(0, |m, i| m | (u32::from(inst(i).identity) << i))),
+                Mat3Lanes::new(|i| inst(i).normal_matrix),
+                F::from_fn(|i| inst(i).det_sign),
+                Mat3Lanes::new(|i| Mat3::from(inst(i).to_world.matrix3)),
+                Lanes::transposed(|i| inst(i).to_world.translation),
             ))
         };
         let ng_obj = cross(&sub(&tri[1], &tri[0]), &sub(&tri[2], &tri[0]));
-        let interpolated = interpolate(&nrm.map(Lanes::from_vecs), &b);
+        let nrm = [
+            Lanes::transposed(|i| nrm[0][i]),
+            Lanes::transposed(|i| nrm[1][i]),
+            Lanes::transposed(|i| nrm[2][i]),
+        ];
+        let interpolated = interpolate(&nrm, &b);
         let (geometric, ns, w) = match &transform {
             None => (normalize_or_zero(&ng_obj), normalize_or_zero(&interpolated), tri),
             Some((identity, normal, det, linear, translation)) => {
@@ -244,30 +316,27 @@ impl Scene {
                     y: g.y * *det,
                     z: g.z * *det,
                 };
-                let world = |v: &Lanes| {
-                    let l = linear.mul(v);
-                    let moved = Lanes {
-                        x: l.x + translation.x,
-                        y: l.y + translation.y,
-                        z: l.z + translation.z,
-                    };
-                    Lanes::select(*identity, v, &moved)
-                };
                 (
                     Lanes::select(*identity, &normalize_or_zero(&ng_obj), &normalize_or_zero(&g)),
                     normalize_or_zero(&Lanes::select(*identity, &interpolated, &normal.mul(&interpolated))),
-                    [world(&tri[0]), world(&tri[1]), world(&tri[2])],
+                    [
+                        to_world(linear, translation, *identity, &tri[0]),
+                        to_world(linear, translation, *identity, &tri[1]),
+                        to_world(linear, translation, *identity, &tri[2]),
+                    ],
                 )
             }
         };
-        let zero = ns.x.simd_eq(f32x4::ZERO) & ns.y.simd_eq(f32x4::ZERO) & ns.z.simd_eq(f32x4::ZERO);
-        let shading = Lanes::select(zero, &geometric, &Lanes::select(mask_of(has_normals), &ns, &geometric));
+        let zero = F::splat(0.0);
+        let zero = ns.x.eq(zero) & ns.y.eq(zero) & ns.z.eq(zero);
+        let shading = Lanes::select(zero, &geometric, &Lanes::select(F::mask(has_normals), &ns, &geometric));
         let point = interpolate(&w, &b);
-        let inf = f32x4::splat(f32::INFINITY);
-        let finite =
-            (point.x.abs().simd_lt(inf) & point.y.abs().simd_lt(inf) & point.z.abs().simd_lt(inf)).to_bitmask();
-        let error_scale = w.iter().fold(f32x4::ZERO, |acc, v| abs_max_element(v).fast_max(acc));
-        let u = |k: usize, a: fn(Vec2) -> f32| f32x4::from(uvs[k].map(a));
+        let inf = F::splat(f32::INFINITY);
+        let finite = (point.x.abs().lt(inf) & point.y.abs().lt(inf) & point.z.abs().lt(inf)).bitmask();
+        // The fold over the three vertices, written out.
+        let error_scale = abs_max_element(&w[2])
+            .max_fast(abs_max_element(&w[1]).max_fast(abs_max_element(&w[0]).max_fast(F::splat(0.0))));
+        let u = |k: usize, a: fn(Vec2) -> f32| uv_lanes::<F>(&uvs, k, a);
         let (ux, uy) = (u(0, |v| v.x), u(0, |v| v.y));
         let (ax, ay, cx, cy) = (
             u(1, |v| v.x) - ux,
@@ -275,16 +344,16 @@ impl Scene {
             u(2, |v| v.x) - ux,
             u(2, |v| v.y) - uy,
         );
-        let uv_area = (ax * cy - ay * cx).abs().to_array();
+        let uv_area = lane_values((ax * cy - ay * cx).abs());
         let e = cross(&sub(&w[1], &w[0]), &sub(&w[2], &w[0]));
-        let world_area = dot(&e, &e).sqrt().to_array();
-        let uvx = (ux * b[0] + u(1, |v| v.x) * b[1] + u(2, |v| v.x) * b[2]).to_array();
-        let uvy = (uy * b[0] + u(1, |v| v.y) * b[1] + u(2, |v| v.y) * b[2]).to_array();
-        let dirs = Lanes::from_vecs(rays.map(|r| r.dir));
+        let world_area = lane_values(dot(&e, &e).sqrt());
+        let uvx = lane_values(ux * b[0] + u(1, |v| v.x) * b[1] + u(2, |v| v.x) * b[2]);
+        let uvy = lane_values(uy * b[0] + u(1, |v| v.y) * b[1] + u(2, |v| v.y) * b[2]);
+        let dirs = Lanes::transposed(|i| rays[i].dir.into());
         let facing = facing_lanes(&dirs, &geometric, &shading);
-        let (geometric, shading, point) = (geometric.to_vecs(), shading.to_vecs(), point.to_vecs());
-        let error_scale = error_scale.to_array();
-        for i in 0..4 {
+        let (geometric, shading, point) = (vectors(&geometric), vectors(&shading), vectors(&point));
+        let error_scale = lane_values(error_scale);
+        for i in 0..n {
             let Some((hit, inst, material)) = found[i] else {
                 continue;
             };
@@ -319,6 +388,7 @@ mod tests {
     use glam::{Mat4, Quat};
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+    use wide::f32x4;
 
     /// Every field's bits, for comparing surfaces exactly.
     fn bits(s: &Surface) -> Vec<u32> {
@@ -345,12 +415,12 @@ mod tests {
         v
     }
 
-    /// Four lanes at once are each lane's own surface bit for bit: objects
+    /// Four and eight lanes at once are each lane's own surface bit for bit: objects
     /// with and without vertex normals, instances without a transform,
     /// rotated and moved far, mirrored, squashed, lanes of one instance
     /// (the broadcast transform) and of several, lanes without a hit.
     #[test]
-    fn four_lanes_are_each_lanes_own_surface() {
+    fn four_and_eight_lanes_are_each_lanes_own_surface() {
         let mut ctx = Context::new();
         let mut objects = Vec::new();
         for k in 0..2u64 {
@@ -391,10 +461,14 @@ mod tests {
         let scene = ctx.scene();
         let mut rng = SmallRng::seed_from_u64(0x5ef);
         let (mut compared, mut mixed) = (0, 0);
-        for round in 0..20_000 {
-            // Every other round the four lanes aim at one instance.
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = openrt_accel::avx2();
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        for round in 0..10_000 {
+            // Every other round the eight lanes aim at one instance.
             let one = rng.random_range(0..centres.len());
-            let rays: [Ray; 4] = std::array::from_fn(|_| {
+            let rays: [Ray; 8] = std::array::from_fn(|_| {
                 let c = centres[if round % 2 == 0 {
                     one
                 } else {
@@ -404,20 +478,41 @@ mod tests {
                 let aim = c + Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
                 Ray::new(o, aim - o, 0.0, f32::INFINITY)
             });
-            let hits: [Option<SceneHit>; 4] = std::array::from_fn(|i| scene.intersect(&rays[i]));
-            let mut got: [Option<Surface>; 4] = [None; 4];
-            let mut faces = [None; 4];
-            scene.own_surfaces(
+            let hits: [Option<SceneHit>; 8] = std::array::from_fn(|i| scene.intersect(&rays[i]));
+            let (ray_refs, hit_refs): ([&Ray; 8], [Option<&SceneHit>; 8]) = (
                 std::array::from_fn(|i| &rays[i]),
                 std::array::from_fn(|i| hits[i].as_ref()),
-                |i, s, f| {
-                    got[i] = Some(s);
-                    faces[i] = Some(*f);
-                },
             );
+            let mut got: [Option<Surface>; 8] = [None; 8];
+            let mut faces = [None; 8];
+            for c in 0..2 {
+                scene.own_surfaces::<f32x4>(&ray_refs[4 * c..], &hit_refs[4 * c..], |i, s, f| {
+                    got[4 * c + i] = Some(s);
+                    faces[4 * c + i] = Some(*f);
+                });
+            }
+            let (mut got8, mut faces8) = (got, faces);
+            if avx2 {
+                (got8, faces8) = ([None; 8], [None; 8]);
+                // SAFETY: the CPU has AVX2 (detected).
+                #[cfg(target_arch = "x86_64")]
+                unsafe {
+                    eight_at_a_time(&scene, &ray_refs, &hit_refs, &mut got8, &mut faces8);
+                }
+            }
             let instances: Vec<u32> = hits.iter().flatten().map(|h| h.instance).collect();
             mixed += usize::from(instances.windows(2).any(|w| w[0] != w[1]));
-            for i in 0..4 {
+            for i in 0..8 {
+                assert_eq!(
+                    got[i].as_ref().map(bits),
+                    got8[i].as_ref().map(bits),
+                    "round {round}, lane {i} of 8"
+                );
+                assert_eq!(
+                    faces[i].as_ref().map(facing_bits),
+                    faces8[i].as_ref().map(facing_bits),
+                    "round {round}, lane {i} of 8"
+                );
                 let want = hits[i].as_ref().and_then(|h| scene.own_surface(&rays[i], h));
                 assert_eq!(
                     want.as_ref().map(bits),
@@ -430,8 +525,25 @@ mod tests {
             }
         }
         assert!(
-            compared > 40_000 && mixed > 5_000,
+            compared > 40_000 && mixed > 4_000,
             "{compared} surfaces, {mixed} mixed packets"
         );
+    }
+
+    /// [`Scene::own_surfaces`] eight lanes at a time, compiled for AVX2 as
+    /// the renderer's shading is.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn eight_at_a_time(
+        scene: &Scene,
+        rays: &[&Ray; 8],
+        hits: &[Option<&SceneHit>; 8],
+        got: &mut [Option<Surface>; 8],
+        faces: &mut [Option<Facing>; 8],
+    ) {
+        scene.own_surfaces::<crate::simd::F32x8>(rays, hits, |i, s, f| {
+            got[i] = Some(s);
+            faces[i] = Some(*f);
+        });
     }
 }
