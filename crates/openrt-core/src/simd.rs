@@ -1,9 +1,10 @@
 //! The lane types of the shading kernels: four lanes (`wide::f32x4`, SSE,
 //! the portable build) and, on x86-64 CPUs with AVX2, eight ([`F32x8`]),
 //! chosen at run time. The kernels written over [`LaneF32`] (the light
-//! loop's geometry and highlight powers) perform the same IEEE operations
-//! in the same order in every lane whatever the width, so every width
-//! gives the same bits (tested against the four-lane type).
+//! loop's geometry and highlight powers, the surfaces of a packet's hits)
+//! perform the same IEEE operations in the same order in every lane
+//! whatever the width, so every width gives the same bits (tested against
+//! the four-lane type).
 //!
 //! `wide` chooses its eight-lane type's instructions when the crate is
 //! compiled (two SSE halves in a portable build), so the eight-lane type
@@ -216,8 +217,9 @@ pub(crate) use avx2::F32x8;
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     // SAFETY (every `unsafe` block of this module): an `F32x8` or `I32x8`
-    // is only made inside `Shader::shade_block_avx2`, which runs after
-    // `openrt_accel::avx2()` found AVX2 on the CPU, and the operations
+    // is only made in code reached from `Shader::shade_block_avx2` (or the
+    // tests' AVX2 functions), which runs after `openrt_accel::avx2()` found
+    // AVX2 on the CPU, and the operations
     // are register intrinsics without memory access except the store of
     // `write_to`, whose slice is cut to eight lanes (bounds-checked) first. PERF: `wide::f32x8` takes AVX only when
     // the crate is compiled for it; these inline into the AVX2-compiled
