@@ -731,17 +731,19 @@ impl<T: Tracer> Shader<'_, T> {
         // sum, so both give the same bits (the packet-width test renders
         // every width against single rays). Kitchen GL-like frames 0.97 of
         // the time side by side, 0.90 with eight lanes to a register.
+        let packet = BlockIn {
+            rays,
+            cones,
+            lanes,
+            depth,
+        };
         #[cfg(target_arch = "x86_64")]
         if N >= 8 && openrt_accel::avx2() {
             // SAFETY: the CPU has AVX2 (detected at run time).
-            unsafe { self.shade_block_avx2(rays, cones, lanes, depth, block) };
+            unsafe { self.shade_block_avx2(&packet, block) };
             return;
         }
-        if self.clock.on {
-            self.shade_block_as::<N, true, f32x4>(rays, cones, lanes, depth, block);
-        } else {
-            self.shade_block_as::<N, false, f32x4>(rays, cones, lanes, depth, block);
-        }
+        self.shade_block_in::<N, f32x4>(&packet, block);
     }
 
     /// [`Shader::shade_block`] compiled for AVX2: its body and what that
@@ -749,35 +751,37 @@ impl<T: Tracer> Shader<'_, T> {
     /// lanes to a register where written over [`LaneF32`].
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn shade_block_avx2<const N: usize>(
-        &mut self,
-        rays: &[Ray; N],
-        cones: &[Cone; N],
-        lanes: u32,
-        depth: u32,
-        block: &mut ShadedBlock<N>,
-    ) {
-        use crate::simd::F32x8;
+    fn shade_block_avx2<const N: usize>(&mut self, packet: &BlockIn<'_, N>, block: &mut ShadedBlock<N>) {
+        self.shade_block_in::<N, crate::simd::F32x8>(packet, block);
+    }
+
+    /// [`Shader::shade_block`] with `F` the lanes of its light loop and
+    /// surfaces, the phase clock on or compiled out, for whichever
+    /// instruction set the caller is compiled for.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn shade_block_in<const N: usize, F: LaneF32>(&mut self, packet: &BlockIn<'_, N>, block: &mut ShadedBlock<N>) {
         if self.clock.on {
-            self.shade_block_as::<N, true, F32x8>(rays, cones, lanes, depth, block);
+            self.shade_block_as::<N, true, F>(packet, block);
         } else {
-            self.shade_block_as::<N, false, F32x8>(rays, cones, lanes, depth, block);
+            self.shade_block_as::<N, false, F>(packet, block);
         }
     }
 
-    /// [`Shader::shade_block`] with the phase clock on (`ON`) or compiled
-    /// out, `F` the lanes of its light loop and surfaces, for whichever
-    /// instruction set the caller is compiled for.
+    /// [`Shader::shade_block_in`] with the phase clock on (`ON`) or off.
     #[allow(clippy::inline_always)]
     #[inline(always)]
     fn shade_block_as<const N: usize, const ON: bool, F: LaneF32>(
         &mut self,
-        rays: &[Ray; N],
-        cones: &[Cone; N],
-        lanes: u32,
-        depth: u32,
+        packet: &BlockIn<'_, N>,
         block: &mut ShadedBlock<N>,
     ) {
+        let &BlockIn {
+            rays,
+            cones,
+            lanes,
+            depth,
+        } = packet;
         let t = PhaseClock::start::<ON>();
         let hits = self.tracer.intersect_packet(rays, lanes);
         let t = self.clock.stop::<ON>(t, query_phase(depth));
@@ -966,6 +970,15 @@ impl<T: Tracer> Shader<'_, T> {
             }
         }
     }
+}
+
+/// The inputs of [`Shader::shade_block`]: a packet's rays, their cones,
+/// its lanes and their depth.
+struct BlockIn<'r, const N: usize> {
+    rays: &'r [Ray; N],
+    cones: &'r [Cone; N],
+    lanes: u32,
+    depth: u32,
 }
 
 /// A packet of bounces for the next depth: its rays, their cones, its
