@@ -39,6 +39,18 @@ const TAG_REQUEST: i32 = 1;
 const TAG_TILES: i32 = 2;
 /// Broadcast length that ends the workers.
 const STOP: u64 = u64::MAX;
+/// The most threads of a worker that its batch of tiles grows with (a
+/// worker reporting more is given this many threads' batch).
+pub const MAX_BATCH_THREADS: u32 = 256;
+
+/// Tiles per request of a worker with `threads` render threads, for a frame
+/// of `n` tiles shared by `workers`: a few per thread (a batch is rendered
+/// like a frame, one task per thread), enough to keep every thread busy
+/// between requests, few enough to balance at the end of the frame.
+fn tile_batch(n: u32, workers: u32, threads: u32) -> u32 {
+    let per_thread = (n / (workers.max(1) * 16)).clamp(1, 8);
+    per_thread * threads.clamp(1, MAX_BATCH_THREADS)
+}
 
 /// How long rank 0 waits for a worker before it reports it
 /// (`OPENRT_MPI_TIMEOUT_S`, default 60 s).
@@ -118,6 +130,8 @@ struct Request {
     commit_ms: f64,
     tiles: Vec<(u32, Vec<[f32; 3]>)>,
     rays: [u64; 4],
+    /// The worker's render threads: its batches of tiles grow with them.
+    threads: u32,
 }
 
 /// Figures of one distributed frame.
@@ -300,9 +314,8 @@ impl Cluster {
         };
         let t1 = Instant::now();
         let n = openrt_core::tile_count(settings);
-        // A few tiles per request: enough to keep a worker busy between
-        // requests, few enough to balance at the end of the frame.
-        let batch = (n / (self.workers() as u32 * 16)).clamp(1, 8);
+        let batch = |threads: u32| tile_batch(n, self.workers().unsigned_abs(), threads);
+        let mut threads = vec![1u32; self.world.size() as usize];
         let mut queue = TileQueue::new(n, self.world.size() as usize, self.static_tiles, self.root_renders);
         let mut tiles: Vec<(u32, Vec<Vec3>)> = Vec::with_capacity(n as usize);
         let mut finished = vec![false; self.world.size() as usize];
@@ -315,7 +328,7 @@ impl Cluster {
                 // whenever no worker is asking.
                 if let Some((r, scene)) = local.filter(|_| self.root_renders && !queue.is_empty() && failure.is_none())
                 {
-                    let give = queue.take(0, batch);
+                    let give = queue.take(0, batch(1));
                     let (done, _) = r
                         .render_tiles(scene, env, camera, settings, Some(&give))
                         .map_err(|e| e.to_string())?;
@@ -346,6 +359,7 @@ impl Cluster {
                 failure.get_or_insert(format!("MPI rank {rank}: {e}"));
             }
             stats.worker_commit_ms = stats.worker_commit_ms.max(req.commit_ms);
+            threads[rank as usize] = req.threads;
             for (a, b) in stats.rays.iter_mut().zip(req.rays) {
                 *a += b;
             }
@@ -355,7 +369,7 @@ impl Cluster {
             let give: Vec<u32> = if failure.is_some() {
                 Vec::new()
             } else {
-                queue.take(rank as usize, batch)
+                queue.take(rank as usize, batch(threads[rank as usize]))
             };
             if give.is_empty() {
                 finished[rank as usize] = true;
@@ -410,7 +424,10 @@ impl Cluster {
                     std::thread::sleep(Duration::from_hours(1));
                 }
             }
-            let mut req = Request::default();
+            let mut req = Request {
+                threads: u32::try_from(threads).unwrap_or(MAX_BATCH_THREADS),
+                ..Request::default()
+            };
             let frame = postcard::from_bytes::<FrameMsg>(&bytes)
                 .map_err(|e| e.to_string())
                 .and_then(|msg| {
@@ -434,7 +451,11 @@ impl Cluster {
                 env = Some(std::sync::Arc::new(e.env()));
             }
             loop {
-                let out = postcard::to_allocvec(&std::mem::take(&mut req)).map_err(|e| e.to_string())?;
+                let out = postcard::to_allocvec(&req).map_err(|e| e.to_string())?;
+                req = Request {
+                    threads: req.threads,
+                    ..Request::default()
+                };
                 root.send_with_tag(&out[..], TAG_REQUEST);
                 let (give, _) = root.receive_vec_with_tag::<u32>(TAG_TILES);
                 if give.is_empty() {
@@ -476,5 +497,29 @@ impl Cluster {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{MAX_BATCH_THREADS, tile_batch};
+
+    #[test]
+    fn batches_grow_with_the_workers_threads() {
+        // 640x480 in 16x16 tiles.
+        let n = 1200;
+        // One thread per worker: as many tiles as before threads counted.
+        assert_eq!(tile_batch(n, 16, 1), 4);
+        assert_eq!(tile_batch(n, 2, 1), 8);
+        // A worker of 16 threads gets 16 threads' share, so that every
+        // thread has tiles between two requests.
+        assert_eq!(tile_batch(n, 1, 16), 128);
+        assert_eq!(tile_batch(n, 4, 4), 4 * 8);
+        // Tiny frames: at least one tile a thread; no worker, no division by zero.
+        assert_eq!(tile_batch(3, 8, 2), 2);
+        assert_eq!(tile_batch(n, 0, 1), 8);
+        // A thread count of 0 (an old worker) counts as 1; a huge one is capped.
+        assert_eq!(tile_batch(n, 2, 0), 8);
+        assert_eq!(tile_batch(n, 2, u32::MAX), 8 * MAX_BATCH_THREADS);
     }
 }

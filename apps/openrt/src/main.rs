@@ -581,6 +581,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 deform_sizes: deform_sizes.into_iter().filter(|&n| n > 0).collect(),
                 out: output,
                 command,
+                device,
             })
         }
         Command::Soak {

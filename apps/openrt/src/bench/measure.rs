@@ -105,6 +105,8 @@ fn measure_scene(
             Backend::ALL
                 .iter()
                 .filter(move |&&b| accel == Accel::Kd || matches!(b, Backend::Kd | Backend::KdSingle))
+                // The device run: packets only (the default backend and Embree's).
+                .filter(move |&&b| !o.device || matches!(b.name(), "kd" | "embree-packet"))
                 .map(move |&b| {
                     let mut r = crate::new_renderer(pool.clone());
                     r.set_backend(b);
@@ -911,7 +913,14 @@ fn embree_side_by_side(o: &BenchOptions, name: &str) -> Result<EmbreeRow, String
 /// figures depend on).
 fn machine() -> String {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-    format!("{cores} cores, {}", std::env::consts::OS)
+    // The processor's name where the system says it (Linux).
+    let cpu = std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| {
+        s.lines()
+            .find(|l| l.starts_with("model name"))
+            .and_then(|l| l.split_once(':'))
+            .map(|(_, v)| format!("{}, ", v.trim()))
+    });
+    format!("{}{cores} cores, {}", cpu.unwrap_or_default(), std::env::consts::OS)
 }
 
 /// Runs every measurement of the bench for `o`.
@@ -922,6 +931,16 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
         let mut reference = Vec::new();
         measure_scene(o, s, Accel::Kd, &mut frames, &mut diffs, &mut reference)?;
         measure_scene(o, s, Accel::Bvh, &mut frames, &mut diffs, &mut reference)?;
+    }
+    if o.device {
+        return Ok(Results {
+            frames,
+            diffs,
+            rebuild_threads: *o.threads.iter().max().unwrap_or(&1),
+            lanes: crate::packet_width().lanes(),
+            machine: machine(),
+            ..Results::default()
+        });
     }
     let mut kinds = Vec::new();
     let mut phase_rows = Vec::new();

@@ -25,12 +25,24 @@ pub struct BenchOptions {
     pub deform_sizes: Vec<usize>,
     pub out: PathBuf,
     pub command: String,
+    /// A run on a larger machine (`--device`): the frame rates of the
+    /// default backend over kd-trees and BVHs and of Embree's packets at
+    /// every thread count, the paper's table and the thread scaling, and
+    /// nothing measured on one thread only (those sections are in
+    /// docs/BENCHMARKS.md).
+    pub device: bool,
 }
 
 /// Runs every measurement and writes the report (and its plot and images).
 pub fn run(o: &BenchOptions) -> Result<(), String> {
     let start = Instant::now();
     let results = measure::all(o)?;
+    if o.device {
+        let md = report::render_device(o, &results, start.elapsed().as_secs_f64());
+        openrt_core::write_atomically(&o.out, |w| w.write_all(md.as_bytes())).map_err(|e| e.to_string())?;
+        eprintln!("bench: wrote {}", o.out.display());
+        return Ok(());
+    }
     let svg = o.out.with_file_name("bench-speed-error.svg");
     let quality: Vec<&Quality> = results.quality.iter().flat_map(|q| &q.rows).collect();
     let plotted = plot(&svg, &quality).map(|()| "bench-speed-error.svg".to_string());

@@ -43,12 +43,54 @@ pub(super) fn render(o: &BenchOptions, res: &Results, plot: &Result<String, Stri
     md
 }
 
+/// The report of a `--device` run (docs/BENCHMARKS-DEVICE.md): the frame
+/// rates, the paper's table and the thread scaling of each backend measured.
+pub(super) fn render_device(o: &BenchOptions, res: &Results, secs: f64) -> String {
+    let mut md = String::new();
+    frame_tables(&mut md, o, res);
+    let of = |b: &str| -> Vec<&Row> { res.frames.iter().filter(|r| r.backend == b).collect() };
+    paper_by_cpus(&mut md, &of(Backend::Kd.name()));
+    paper_tables(&mut md, &of(Backend::Kd.name()));
+    for b in ["bvh", "embree-packet"] {
+        scaling_table(&mut md, &of(b), b);
+    }
+    let _ = writeln!(
+        md,
+        "\nOnly what depends on the thread count is measured here; the one-thread sections (ray queries, phases, builders, speed against error) are in BENCHMARKS.md.\n\nThe whole run took {secs:.0} s."
+    );
+    md
+}
+
+/// The paper's frame rates against this run's at the same number of CPUs
+/// (its clients had 2 CPUs each; one thread here is one CPU).
+fn paper_by_cpus(md: &mut String, rows: &[&Row]) {
+    let _ = writeln!(
+        md,
+        "\n## The paper's table at equal CPU counts (fps, paper / here with `kd`)\n\nThe paper's clients had 2 CPUs each (its 1, 2, 4, 8, 16 clients are 2, 4, 8, 16, 32 CPUs); here one thread is one core.\n\n| scene | mode | 2 CPUs | 4 | 8 | 16 | 32 (paper only) |\n|---|---|---:|---:|---:|---:|---:|"
+    );
+    for (scene, mode, p) in PAPER {
+        let at = |t: usize| {
+            rows.iter()
+                .find(|r| r.scene == *scene && r.mode == *mode && r.threads == t)
+                .map_or("-".to_string(), |r| format!("{:.2}", r.fps()))
+        };
+        let paper = |v: f64| if v.is_nan() { "-".to_string() } else { format!("{v}") };
+        let cells: Vec<String> = [2, 4, 8, 16]
+            .iter()
+            .zip(p)
+            .map(|(&t, &v)| format!("{} / {}", paper(v), at(t)))
+            .collect();
+        let _ = writeln!(md, "| {scene} | {mode} | {} | {} |", cells.join(" | "), paper(p[4]));
+    }
+}
+
 /// The header, the frame-rate table, the backends side by side and the images.
 fn frame_tables(md: &mut String, o: &BenchOptions, res: &Results) {
     let rows = &res.frames;
     let _ = writeln!(
         md,
-        "# Benchmarks\n\nGenerated {} by `{}` ({}) on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds, promotions) + render; fps = 1000 / frame time.\n",
+        "# Benchmarks{}\n\nGenerated {} by `{}` ({}) on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds, promotions) + render; fps = 1000 / frame time.\n",
+        if o.device { " on the 16-core machine" } else { "" },
         humantime::format_rfc3339_seconds(std::time::SystemTime::now()),
         o.command,
         if cfg!(feature = "embree") {
@@ -238,7 +280,12 @@ fn paper_tables(md: &mut String, rows: &[&Row]) {
             f(max.map(|m| m.1))
         );
     }
-    // Thread scaling: every measured thread count, beside the paper's 1..16 CPUs.
+    scaling_table(md, rows, Backend::Kd.name());
+}
+
+/// Thread scaling of `backend`'s `rows`: every measured thread count,
+/// beside the paper's 1..16 CPUs (only where more than two were measured).
+fn scaling_table(md: &mut String, rows: &[&Row], backend: &str) {
     let counts: Vec<usize> = {
         let mut c: Vec<usize> = rows.iter().map(|r| r.threads).collect();
         c.sort_unstable();
@@ -249,7 +296,7 @@ fn paper_tables(md: &mut String, rows: &[&Row]) {
         let heads: Vec<String> = counts.iter().map(|t| format!("{t} thr")).collect();
         let _ = writeln!(
             md,
-            "\n## Thread scaling (fps; speedup and parallel efficiency against 1 thread)\n\n| scene | mode | {} | speedup | efficiency | paper speedup 1 -> 16 clients (2 -> 32 CPUs) |\n|---|---|{}---:|---:|---:|",
+            "\n## Thread scaling, `{backend}` (fps; speedup and parallel efficiency against 1 thread)\n\n| scene | mode | {} | speedup | efficiency | paper speedup 1 -> 16 clients (2 -> 32 CPUs) |\n|---|---|{}---:|---:|---:|",
             heads.join(" | "),
             "---:|".repeat(counts.len())
         );
@@ -539,5 +586,72 @@ fn embree_table(md: &mut String, res: &Results) {
             e.embree_mrays,
             e.ours_mrays / e.embree_mrays
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::BenchOptions;
+    use super::super::results::{Results, Row};
+    use super::render_device;
+
+    fn row(backend: &'static str, threads: usize, render_ms: f64) -> Row {
+        Row {
+            scene: "kitchen".into(),
+            mode: "Whitted",
+            backend,
+            threads,
+            commit_ms: 0.0,
+            toplevel_ms: 0.0,
+            fast_ms: 0.0,
+            promotions: 0,
+            render_ms,
+            rays: 0.0,
+            triangles: 110_520,
+            instances: 6,
+        }
+    }
+
+    #[test]
+    fn the_device_report_sets_the_paper_beside_equal_cpu_counts() {
+        let frames = [1, 2, 4, 8, 16]
+            .into_iter()
+            .flat_map(|t| {
+                // kd: perfect scaling from 2 s at one thread; bvh at half that rate.
+                let ms = 2000.0 / t as f64;
+                [row("kd", t, ms), row("bvh", t, 2.0 * ms)]
+            })
+            .collect();
+        let res = Results {
+            frames,
+            lanes: 16,
+            machine: "test machine, 16 cores".into(),
+            ..Results::default()
+        };
+        let o = BenchOptions {
+            scenes: vec!["kitchen".into()],
+            frames: 3,
+            width: 640,
+            height: 480,
+            threads: vec![1, 2, 4, 8, 16],
+            deform_sizes: Vec::new(),
+            out: "BENCHMARKS-DEVICE.md".into(),
+            command: "openrt bench --device".into(),
+            device: true,
+        };
+        let md = render_device(&o, &res, 1.0);
+        assert!(md.starts_with("# Benchmarks on the 16-core machine"), "{md}");
+        // The paper's 1, 2, 4, 8 clients (2..16 CPUs) beside 2..16 threads.
+        assert!(
+            md.contains("| kitchen | Whitted | 0.25 / 1.00 | 0.5 / 2.00 | 1.05 / 4.00 | 2 / 8.00 | 4 |"),
+            "{md}"
+        );
+        // Scaling of each backend measured, none of the one-thread sections.
+        assert!(md.contains("## Thread scaling, `kd`") && md.contains("## Thread scaling, `bvh`"));
+        assert!(
+            md.contains("| 0.50 | 1.00 | 2.00 | 4.00 | 8.00 | 16.00x | 100% |"),
+            "{md}"
+        );
+        assert!(!md.contains("Speed against error") && !md.contains("## Targets"));
     }
 }

@@ -186,6 +186,7 @@ impl DeformRow {
 }
 
 /// Everything a run measured.
+#[derive(Default)]
 pub(super) struct Results {
     pub(super) frames: Vec<Row>,
     pub(super) phases: Vec<PhaseRow>,
