@@ -17,9 +17,12 @@
 
 mod build;
 mod node;
+mod node8;
 mod packet;
 mod refit;
 mod walk;
+#[cfg(target_arch = "x86_64")]
+mod walk8;
 
 use std::time::Instant;
 
@@ -40,6 +43,35 @@ use crate::packet::triangle::PacketBlockRay;
 use crate::packet::width::lanes_of;
 use build::{Ref, bounds_of, build_into};
 use node::{EMPTY_SLOT, LEAF_BIT};
+use node8::Node8;
+
+/// Whether single rays walk an eight-wide copy of each BVH: on x86-64 CPUs
+/// with AVX2, unless `OPENRT_BVH_WIDTH=4` (read once; for measurements side
+/// by side).
+fn wide8() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        static WIDE8: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        *WIDE8.get_or_init(|| crate::avx2() && std::env::var("OPENRT_BVH_WIDTH").as_deref() != Ok("4"))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// Walks `bvh`'s eight-wide copy when it has one, else its four-wide nodes
+/// (`walk::walk`'s contract).
+#[inline]
+fn walk_single<L>(bvh: &Bvh, ray: &Ray, closest: &mut f32, leaf: L) -> bool
+where
+    L: FnMut(u32, u32, &mut f32) -> bool,
+{
+    #[cfg(target_arch = "x86_64")]
+    if !bvh.nodes8.is_empty() {
+        // SAFETY: the copy is made only on CPUs with AVX2 (`wide8`).
+        return unsafe { walk8::walk8(&bvh.nodes8, ray, closest, leaf) };
+    }
+    walk::walk(&bvh.nodes, ray, closest, leaf)
+}
 
 /// Most triangles a BVH takes: leaf offsets and node indices stay below
 /// bit 31 with room for the blocks' padding.
@@ -83,6 +115,9 @@ pub struct BvhStats {
 #[derive(Clone, Debug)]
 pub struct Bvh {
     nodes: Vec<BvhNode>,
+    /// The same tree collapsed to eight-wide nodes for single rays, on CPUs
+    /// with AVX2 (`node8.rs`, `walk8.rs`); empty elsewhere.
+    nodes8: Vec<Node8>,
     prim_ids: Vec<u32>,
     blocks: Vec<TriBlock>,
     tris: Vec<Triangle>,
@@ -184,6 +219,7 @@ impl Bvh {
         let (prim_ids, blocks, leaves) = pack(&mut nodes, &ids, &tris);
         let mut bvh = Self {
             nodes,
+            nodes8: Vec::new(),
             prim_ids,
             blocks,
             bounds,
@@ -209,9 +245,19 @@ impl Bvh {
 
     /// Fills in the figures every build and refit reports, and checks the
     /// tree in debug-assertion builds.
+    ///
+    /// A built tree gets its eight-wide copy here; a refitted one keeps the
+    /// four-wide walk (PERF: a collapse costs about half a refit: 2 ms at
+    /// 100k triangles).
     fn finish(&mut self, start: Instant) {
+        self.nodes8 = if wide8() && !self.stats.refitted {
+            node8::collapse(&self.nodes)
+        } else {
+            Vec::new()
+        };
         self.stats.nodes = self.nodes.len();
         self.stats.bytes = size_of_val(self.nodes.as_slice())
+            + size_of_val(self.nodes8.as_slice())
             + size_of_val(self.prim_ids.as_slice())
             + size_of_val(self.blocks.as_slice())
             + size_of_val(self.tris.as_slice());
@@ -311,7 +357,7 @@ impl Bvh {
         self.bounds.clip(&ray.with_interval(ray.t_min, *closest))?;
         let mut best: Option<Hit> = None;
         let br = BlockRay::new(ray);
-        walk::walk(&self.nodes, ray, closest, |off, count, closest| {
+        walk_single(self, ray, closest, |off, count, closest| {
             let leaf = KdNode::leaf(off, count);
             let tie = best.map_or(NO_TIE, |h| h.prim);
             if let Some((prim, (t, b1, b2))) = leaf_closest(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest, tie)
@@ -338,7 +384,7 @@ impl Bvh {
         let mut closest = ray.t_max;
         let br = BlockRay::new(ray);
         let mut found = None;
-        walk::walk(&self.nodes, ray, &mut closest, |off, count, closest| {
+        walk_single(self, ray, &mut closest, |off, count, closest| {
             let leaf = KdNode::leaf(off, count);
             let hit = leaf_any(ray, &br, leaf, &self.prim_ids, &self.blocks, *closest);
             if hit {
@@ -629,6 +675,7 @@ impl Bvh {
         if let Some(n) = reached.iter().position(|r| !r) {
             return bad(format!("node {n} is not reached from the root"));
         }
+        self.validate8()?;
         if deepest != self.stats.depth && !self.stats.refitted {
             return bad(format!("depth {deepest} but the figures say {}", self.stats.depth));
         }
@@ -637,6 +684,80 @@ impl Bvh {
             if seen[p] != want {
                 return bad(format!("triangle {p} is in {} leaves, not {want}", seen[p]));
             }
+        }
+        Ok(())
+    }
+}
+
+impl Bvh {
+    /// The eight-wide copy, where there is one: every interior child after
+    /// its parent and reached once, boxes holding their children, no deeper
+    /// than [`BVH_MAX_DEPTH`], and exactly the four-wide tree's leaves with
+    /// the same boxes, bit for bit.
+    fn validate8(&self) -> Result<(), AccelError> {
+        let bad = |m: String| Err(AccelError::Invalid(format!("BVH, eight-wide copy: {m}")));
+        if self.nodes8.is_empty() {
+            return if wide8() && !self.nodes.is_empty() && !self.stats.refitted {
+                bad("missing on a CPU that walks it".into())
+            } else {
+                Ok(())
+            };
+        }
+        let leaf_key = |b: Aabb, child: u32, count: u32| {
+            let bits = [b.min.to_array(), b.max.to_array()].map(|v| v.map(f32::to_bits));
+            (child, count, bits)
+        };
+        let mut want = Vec::new();
+        for node in &self.nodes {
+            for i in 0..BVH_WIDTH {
+                if node.child[i] != EMPTY_SLOT && node.child[i] & LEAF_BIT != 0 {
+                    want.push(leaf_key(node.child_box(i), node.child[i], node.count[i]));
+                }
+            }
+        }
+        let mut got = Vec::new();
+        let mut reached = vec![false; self.nodes8.len()];
+        let mut stack = vec![(0u32, 1usize)];
+        reached[0] = true;
+        while let Some((n, depth)) = stack.pop() {
+            if depth > BVH_MAX_DEPTH {
+                return bad(format!("depth {depth} exceeds {BVH_MAX_DEPTH}"));
+            }
+            let node = &self.nodes8[n as usize];
+            for i in 0..node8::BVH8_WIDTH {
+                let (c, b) = (node.child[i], node.child_box(i));
+                if c == EMPTY_SLOT {
+                    continue;
+                }
+                if c & LEAF_BIT != 0 {
+                    got.push(leaf_key(b, c, node.count[i]));
+                    continue;
+                }
+                if c <= n || c as usize >= self.nodes8.len() || reached[c as usize] {
+                    return bad(format!("node {n} slot {i}: child {c} out of order or reached twice"));
+                }
+                reached[c as usize] = true;
+                let inner = &self.nodes8[c as usize];
+                let held = (0..node8::BVH8_WIDTH)
+                    .filter(|&k| inner.child[k] != EMPTY_SLOT)
+                    .all(|k| b.contains_box(&inner.child_box(k)));
+                if !held {
+                    return bad(format!("node {n} slot {i}: box does not hold child {c}"));
+                }
+                stack.push((c, depth + 1));
+            }
+        }
+        if let Some(n) = reached.iter().position(|r| !r) {
+            return bad(format!("node {n} is not reached from the root"));
+        }
+        want.sort_unstable();
+        got.sort_unstable();
+        if got != want {
+            return bad(format!(
+                "{} leaves, not the four-wide tree's {} (or with other boxes)",
+                got.len(),
+                want.len()
+            ));
         }
         Ok(())
     }

@@ -75,6 +75,7 @@ impl Bvh {
         let bounds = nodes.first().map_or(Aabb::EMPTY, BvhNode::bounds);
         let mut bvh = Self {
             nodes,
+            nodes8: Vec::new(),
             prim_ids: prev.prim_ids.clone(),
             blocks,
             tris,

@@ -459,3 +459,173 @@ fn packets_answer_as_single_rays() {
         }
     }
 }
+
+/// The eight-wide node test (AVX2) equals its scalar twin bit for bit, on
+/// random boxes (flat ones too), unused slots and axis-parallel rays.
+#[test]
+fn the_eight_wide_node_test_equals_its_scalar_twin_bit_for_bit() {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use super::node8::{BVH8_WIDTH, Node8};
+        use super::walk8::{node8_test_avx2, node8_test_scalar};
+        if !crate::avx2() {
+            eprintln!("no AVX2 on this CPU: the eight-wide walk is never used here");
+            return;
+        }
+        let mut rng = SmallRng::seed_from_u64(23);
+        let mut hits = 0;
+        for k in 0..20_000 {
+            let mut node = BvhNode::empty();
+            let mut other = BvhNode::empty();
+            let used = rng.random_range(1..=BVH8_WIDTH);
+            for i in 0..used {
+                let a = Vec3::new(
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-2.0..2.0),
+                );
+                let mut e = Vec3::new(
+                    rng.random_range(0.0..2.0),
+                    rng.random_range(0.0..2.0),
+                    rng.random_range(0.0..2.0),
+                );
+                if k % 5 == 0 {
+                    e.z = 0.0;
+                }
+                let half = if i < BVH_WIDTH { &mut node } else { &mut other };
+                half.set_box(i % BVH_WIDTH, &Aabb::new(a, a + e));
+                half.child[i % BVH_WIDTH] = LEAF_BIT;
+                half.count[i % BVH_WIDTH] = 1;
+            }
+            // Two four-wide nodes under one root, collapsed into one eight-wide node.
+            let mut root = BvhNode::empty();
+            for (i, n) in [&node, &other].into_iter().enumerate() {
+                if n.child[0] != EMPTY_SLOT {
+                    root.set_box(i, &n.bounds());
+                    root.child[i] = i as u32 + 1;
+                }
+            }
+            let eight: Vec<Node8> = super::node8::collapse(&[root, node, other]);
+            assert_eq!(eight.len(), 1, "case {k}: two four-wide nodes fit in one");
+            let o = Vec3::new(
+                rng.random_range(-4.0..4.0),
+                rng.random_range(-4.0..4.0),
+                rng.random_range(-4.0..4.0),
+            );
+            let mut d = Vec3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+            ) - o;
+            if k % 7 == 0 {
+                d.x = if k % 2 == 0 { 0.0 } else { -0.0 };
+            }
+            let ray = Ray::new(o, d, rng.random_range(-1.0..1.0), f32::INFINITY);
+            if !ray.is_valid() {
+                continue;
+            }
+            let closest = rng.random_range(0.0..8.0);
+            let (mask, near) = node8_test_avx2(&ray, &eight[0], closest).expect("AVX2");
+            let (want, want_near) = node8_test_scalar(&ray, &eight[0], closest);
+            assert_eq!(mask, want, "case {k}");
+            for i in 0..BVH8_WIDTH {
+                if mask & (1 << i) != 0 {
+                    assert_eq!(near[i].to_bits(), want_near[i].to_bits(), "case {k} lane {i}");
+                }
+            }
+            // The four-wide test of the same boxes takes the same ones.
+            let (m4, _) = NodeRay::new(&ray).test(&node, closest);
+            let (m4b, _) = NodeRay::new(&ray).test(&other, closest);
+            let slot_of =
+                |b: Aabb| (0..BVH8_WIDTH).find(|&i| eight[0].child_box(i) == b && eight[0].child[i] != EMPTY_SLOT);
+            for (n, m) in [(&node, m4), (&other, m4b)] {
+                for i in (0..BVH_WIDTH).filter(|&i| n.child[i] != EMPTY_SLOT) {
+                    let s = slot_of(n.child_box(i)).expect("every box is in the eight-wide node");
+                    assert_eq!(m & (1 << i) != 0, mask & (1 << s) != 0, "case {k} box {i}");
+                }
+            }
+            hits += mask.count_ones();
+        }
+        assert!(hits > 3_000, "{hits} box hits: the sweep tests too little");
+    }
+}
+
+/// The eight-wide copy has fewer, fuller nodes than the four-wide tree, and
+/// single rays through it answer as through the four-wide nodes, bit for
+/// bit, closest and any hit, bounded too.
+#[test]
+fn the_eight_wide_walk_answers_as_the_four_wide_one() {
+    let mut tris = meshgen::bumpy_sphere(20_000, 3, 0.3);
+    tris.extend(
+        meshgen::bumpy_sphere(500, 9, 0.0)
+            .into_iter()
+            .map(|t| t.map(|v| v * 0.2 + Vec3::X)),
+    );
+    let bvh = Bvh::build(tris).expect("build");
+    bvh.validate().expect("valid");
+    if bvh.nodes8.is_empty() {
+        eprintln!("no eight-wide copy on this CPU (no AVX2, or OPENRT_BVH_WIDTH=4)");
+        return;
+    }
+    assert!(
+        bvh.nodes8.len() * 3 < bvh.nodes.len() * 2,
+        "{} eight-wide nodes for {} four-wide ones",
+        bvh.nodes8.len(),
+        bvh.nodes.len()
+    );
+    let mut four = bvh.clone();
+    four.nodes8.clear();
+    let b = Aabb::new(Vec3::splat(-1.5), Vec3::splat(1.5));
+    let mut rays = meshgen::random_rays(4000, 5, b);
+    rays.extend(meshgen::camera_rays(Vec3::new(0.3, 0.2, 3.0), Vec3::ZERO, 40, 40, 50.0));
+    rays.push(Ray::new(Vec3::new(-3.0, 0.0, 0.0), Vec3::X, 0.0, f32::INFINITY));
+    let (mut hits, mut blocked) = (0, 0);
+    for (i, ray) in rays.iter().enumerate() {
+        let got = bvh.intersect(ray);
+        assert_eq!(got, four.intersect(ray), "ray {i}");
+        hits += usize::from(got.is_some());
+        // Just before the closest hit (not blocked) or just past it (blocked).
+        let end = if i % 2 == 0 { 0.999 } else { 1.001 };
+        let cut = ray.with_interval(ray.t_min, got.map_or(2.0, |h| h.t * end));
+        let o = bvh.occluded(&cut);
+        assert_eq!(o, four.occluded(&cut), "shadow ray {i}");
+        blocked += usize::from(o);
+        let bound = got.map_or(ray.t_max, |h| h.t * 1.5);
+        let (mut a, mut c) = (bound, bound);
+        assert_eq!(
+            bvh.intersect_within(ray, &mut a),
+            four.intersect_within(ray, &mut c),
+            "ray {i}: bounded"
+        );
+        assert_eq!(a.to_bits(), c.to_bits());
+    }
+    assert!(hits > 1000 && blocked > 100, "{hits} hits, {blocked} blocked: too few");
+}
+
+#[test]
+fn validate_catches_a_broken_eight_wide_copy() {
+    let bvh = Bvh::build(meshgen::bumpy_sphere(3000, 4, 0.1)).unwrap();
+    bvh.validate().unwrap();
+    if bvh.nodes8.is_empty() {
+        return;
+    }
+    let mut lost = bvh.clone();
+    let node = lost
+        .nodes8
+        .iter_mut()
+        .find(|n| n.child.iter().any(|&c| c != EMPTY_SLOT && c & LEAF_BIT != 0))
+        .unwrap();
+    let slot = node
+        .child
+        .iter()
+        .position(|&c| c != EMPTY_SLOT && c & LEAF_BIT != 0)
+        .unwrap();
+    node.child[slot] = EMPTY_SLOT;
+    assert!(lost.validate().is_err(), "a leaf missing from the copy");
+    let mut shrunk = bvh.clone();
+    shrunk.nodes8[0].hi[0][0] = shrunk.nodes8[0].lo[0][0];
+    assert!(shrunk.validate().is_err(), "a box that no longer holds its child");
+    let mut gone = bvh;
+    gone.nodes8.clear();
+    assert!(gone.validate().is_err(), "no copy on a CPU that walks it");
+}
