@@ -125,7 +125,7 @@ pub(crate) fn node8_test_scalar(ray: &Ray, node: &Node8, closest: f32) -> (u32, 
 #[cfg(test)]
 pub(crate) fn node8_test_avx2(ray: &Ray, node: &Node8, closest: f32) -> Option<(u32, [f32; BVH8_WIDTH])> {
     // SAFETY: called only where the CPU has AVX2.
-    crate::avx2().then(|| unsafe { NodeRay8::new(ray).test(node, closest) })
+    crate::packet::width::avx2().then(|| unsafe { NodeRay8::new(ray).test(node, closest) })
 }
 
 /// A deferred child: its slot value, triangle count and entry distance.
@@ -141,7 +141,7 @@ struct Entry {
 /// lowers `closest` on a hit and returns `true` to stop (any hit).
 ///
 /// # Safety
-/// The CPU must have AVX2 (`crate::avx2()`).
+/// The CPU must have AVX2 (`crate::packet::width::avx2()`).
 #[target_feature(enable = "avx2")]
 #[inline]
 pub(crate) unsafe fn walk8<L>(nodes: &[Node8], ray: &Ray, closest: &mut f32, mut leaf: L) -> bool
