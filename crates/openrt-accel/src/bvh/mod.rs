@@ -43,7 +43,7 @@ use crate::packet::triangle::PacketBlockRay;
 use crate::packet::width::lanes_of;
 use build::{Ref, bounds_of, build_into};
 use node::{EMPTY_SLOT, LEAF_BIT};
-use node8::Wide8;
+use node8::Node8;
 
 /// Whether single rays walk an eight-wide copy of each BVH: on x86-64 CPUs
 /// with AVX2, unless `OPENRT_BVH_WIDTH=4` (read once; for measurements side
@@ -66,9 +66,9 @@ where
     L: FnMut(u32, u32, &mut f32) -> bool,
 {
     #[cfg(target_arch = "x86_64")]
-    if !bvh.wide.nodes.is_empty() {
+    if !bvh.nodes8.is_empty() {
         // SAFETY: the copy is made only on CPUs with AVX2 (`wide8`).
-        return unsafe { walk8::walk8(&bvh.wide.nodes, ray, closest, leaf) };
+        return unsafe { walk8::walk8(&bvh.nodes8, ray, closest, leaf) };
     }
     walk::walk(&bvh.nodes, ray, closest, leaf)
 }
@@ -117,7 +117,7 @@ pub struct Bvh {
     nodes: Vec<BvhNode>,
     /// The same tree collapsed to eight-wide nodes for single rays, on CPUs
     /// with AVX2 (`node8.rs`, `walk8.rs`); empty elsewhere.
-    wide: Wide8,
+    nodes8: Vec<Node8>,
     prim_ids: Vec<u32>,
     blocks: Vec<TriBlock>,
     tris: Vec<Triangle>,
@@ -219,7 +219,7 @@ impl Bvh {
         let (prim_ids, blocks, leaves) = pack(&mut nodes, &ids, &tris);
         let mut bvh = Self {
             nodes,
-            wide: Wide8::default(),
+            nodes8: Vec::new(),
             prim_ids,
             blocks,
             bounds,
@@ -246,16 +246,18 @@ impl Bvh {
     /// Fills in the figures every build and refit reports, and checks the
     /// tree in debug-assertion builds.
     ///
-    /// A built tree gets its eight-wide copy here (a refit brings its own,
-    /// the old copy with new boxes: a collapse costs about half a refit).
+    /// A built tree gets its eight-wide copy here; a refitted one keeps the
+    /// four-wide walk (PERF: a collapse costs about half a refit: 2 ms at
+    /// 100k triangles).
     fn finish(&mut self, start: Instant) {
-        if wide8() && !self.stats.refitted {
-            self.wide = node8::collapse(&self.nodes);
-        }
+        self.nodes8 = if wide8() && !self.stats.refitted {
+            node8::collapse(&self.nodes)
+        } else {
+            Vec::new()
+        };
         self.stats.nodes = self.nodes.len();
         self.stats.bytes = size_of_val(self.nodes.as_slice())
-            + size_of_val(self.wide.nodes.as_slice())
-            + size_of_val(self.wide.src.as_slice())
+            + size_of_val(self.nodes8.as_slice())
             + size_of_val(self.prim_ids.as_slice())
             + size_of_val(self.blocks.as_slice())
             + size_of_val(self.tris.as_slice());
@@ -694,8 +696,8 @@ impl Bvh {
     /// the same boxes, bit for bit.
     fn validate8(&self) -> Result<(), AccelError> {
         let bad = |m: String| Err(AccelError::Invalid(format!("BVH, eight-wide copy: {m}")));
-        if self.wide.nodes.is_empty() {
-            return if wide8() && !self.nodes.is_empty() {
+        if self.nodes8.is_empty() {
+            return if wide8() && !self.nodes.is_empty() && !self.stats.refitted {
                 bad("missing on a CPU that walks it".into())
             } else {
                 Ok(())
@@ -714,14 +716,14 @@ impl Bvh {
             }
         }
         let mut got = Vec::new();
-        let mut reached = vec![false; self.wide.nodes.len()];
+        let mut reached = vec![false; self.nodes8.len()];
         let mut stack = vec![(0u32, 1usize)];
         reached[0] = true;
         while let Some((n, depth)) = stack.pop() {
             if depth > BVH_MAX_DEPTH {
                 return bad(format!("depth {depth} exceeds {BVH_MAX_DEPTH}"));
             }
-            let node = &self.wide.nodes[n as usize];
+            let node = &self.nodes8[n as usize];
             for i in 0..node8::BVH8_WIDTH {
                 let (c, b) = (node.child[i], node.child_box(i));
                 if c == EMPTY_SLOT {
@@ -731,11 +733,11 @@ impl Bvh {
                     got.push(leaf_key(b, c, node.count[i]));
                     continue;
                 }
-                if c <= n || c as usize >= self.wide.nodes.len() || reached[c as usize] {
+                if c <= n || c as usize >= self.nodes8.len() || reached[c as usize] {
                     return bad(format!("node {n} slot {i}: child {c} out of order or reached twice"));
                 }
                 reached[c as usize] = true;
-                let inner = &self.wide.nodes[c as usize];
+                let inner = &self.nodes8[c as usize];
                 let held = (0..node8::BVH8_WIDTH)
                     .filter(|&k| inner.child[k] != EMPTY_SLOT)
                     .all(|k| b.contains_box(&inner.child_box(k)));

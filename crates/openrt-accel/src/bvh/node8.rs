@@ -65,77 +65,36 @@ impl Node8 {
     }
 }
 
-/// A used slot of a four-wide node: box, child value, triangle count and
-/// where it sits (`node * BVH_WIDTH + slot`).
+/// A used slot of a four-wide node: box, child value and triangle count.
 #[derive(Clone, Copy)]
 struct Slot {
     bounds: Aabb,
     child: u32,
     count: u32,
-    src: u32,
 }
 
-fn slots_of(nodes: &[BvhNode], n: u32) -> impl Iterator<Item = Slot> + '_ {
-    let node = &nodes[n as usize];
-    (0..BVH_WIDTH)
-        .filter(|&i| node.child[i] != EMPTY_SLOT)
-        .map(move |i| Slot {
-            bounds: node.child_box(i),
-            child: node.child[i],
-            count: node.count[i],
-            src: n * BVH_WIDTH as u32 + i as u32,
-        })
-}
-
-/// The eight-wide copy of a tree: its nodes and, per slot, the four-wide
-/// slot it copies (`node * BVH_WIDTH + slot`; [`EMPTY_SLOT`] for unused
-/// ones), so that a refit of the four-wide boxes refits the copy too.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct Wide8 {
-    pub(crate) nodes: Vec<Node8>,
-    pub(crate) src: Vec<[u32; BVH8_WIDTH]>,
-}
-
-impl Wide8 {
-    /// The copy with every box taken again from `nodes`, the four-wide tree
-    /// it was collapsed from after a refit (same topology).
-    pub(crate) fn refit(&self, nodes: &[BvhNode]) -> Self {
-        let mut out = self.clone();
-        for (node, src) in out.nodes.iter_mut().zip(&self.src) {
-            for (i, &s) in src.iter().enumerate() {
-                if s != EMPTY_SLOT {
-                    let (n, k) = (s as usize / BVH_WIDTH, s as usize % BVH_WIDTH);
-                    let b = nodes[n].child_box(k);
-                    let (lo, hi) = (b.min.to_array(), b.max.to_array());
-                    for a in 0..3 {
-                        node.lo[a][i] = lo[a];
-                        node.hi[a][i] = hi[a];
-                    }
-                }
-            }
-        }
-        out
-    }
+fn slots_of(node: &BvhNode) -> impl Iterator<Item = Slot> + '_ {
+    (0..BVH_WIDTH).filter(|&i| node.child[i] != EMPTY_SLOT).map(|i| Slot {
+        bounds: node.child_box(i),
+        child: node.child[i],
+        count: node.count[i],
+    })
 }
 
 /// The eight-wide tree of a four-wide `nodes` (root 0): each node's slots
 /// are filled by pulling up the largest interior child whose children fit.
 /// Interior children follow their parents, as in the four-wide array.
-pub(crate) fn collapse(nodes: &[BvhNode]) -> Wide8 {
-    let mut out = Wide8 {
-        nodes: Vec::with_capacity(nodes.len() / 2 + 1),
-        src: Vec::with_capacity(nodes.len() / 2 + 1),
-    };
-    if nodes.is_empty() {
+pub(crate) fn collapse(nodes: &[BvhNode]) -> Vec<Node8> {
+    let mut out = Vec::with_capacity(nodes.len() / 2 + 1);
+    let Some(root) = nodes.first() else {
         return out;
-    }
-    out.nodes.push(Node8::empty());
-    out.src.push([EMPTY_SLOT; BVH8_WIDTH]);
+    };
+    out.push(Node8::empty());
     // (index in `out`, the slots it will hold)
-    let mut work: Vec<(usize, Vec<Slot>)> = vec![(0, slots_of(nodes, 0).collect())];
+    let mut work: Vec<(usize, Vec<Slot>)> = vec![(0, slots_of(root).collect())];
     while let Some((at, mut slots)) = work.pop() {
         loop {
-            let used = |s: &Slot| slots_of(nodes, s.child).count();
+            let used = |s: &Slot| slots_of(&nodes[s.child as usize]).count();
             let pick = slots
                 .iter()
                 .enumerate()
@@ -144,24 +103,20 @@ pub(crate) fn collapse(nodes: &[BvhNode]) -> Wide8 {
                 .map(|(i, _)| i);
             let Some(i) = pick else { break };
             let pulled = slots.swap_remove(i);
-            slots.extend(slots_of(nodes, pulled.child));
+            slots.extend(slots_of(&nodes[pulled.child as usize]));
         }
         let mut node = Node8::empty();
-        let mut src = [EMPTY_SLOT; BVH8_WIDTH];
         for (i, s) in slots.iter().enumerate() {
             let mut s = *s;
             if s.child & LEAF_BIT == 0 {
-                let child = out.nodes.len();
-                out.nodes.push(Node8::empty());
-                out.src.push([EMPTY_SLOT; BVH8_WIDTH]);
-                work.push((child, slots_of(nodes, s.child).collect()));
+                let child = out.len();
+                out.push(Node8::empty());
+                work.push((child, slots_of(&nodes[s.child as usize]).collect()));
                 s.child = child as u32;
             }
             node.set(i, &s);
-            src[i] = s.src;
         }
-        out.nodes[at] = node;
-        out.src[at] = src;
+        out[at] = node;
     }
     out
 }

@@ -73,10 +73,9 @@ impl Bvh {
             .flat_map_iter(|c| c.chunks(LANES).map(|b| TriBlock::pack(b, &tris)).collect::<Vec<_>>())
             .collect();
         let bounds = nodes.first().map_or(Aabb::EMPTY, BvhNode::bounds);
-        let wide = prev.wide.refit(&nodes);
         let mut bvh = Self {
             nodes,
-            wide,
+            nodes8: Vec::new(),
             prim_ids: prev.prim_ids.clone(),
             blocks,
             tris,
