@@ -129,48 +129,61 @@ fn axis_parallel_rays_along_faces_match_the_kd_tree() {
     assert!(same_as_kd_and_oracle(&tris, &rays, 1) > 50);
 }
 
+/// A box in [-2, 4]^3; `flat`: of zero extent along one axis, as
+/// axis-aligned triangles make.
+fn random_box(rng: &mut SmallRng, flat: bool) -> Aabb {
+    let a = Vec3::new(
+        rng.random_range(-2.0..2.0),
+        rng.random_range(-2.0..2.0),
+        rng.random_range(-2.0..2.0),
+    );
+    let mut e = Vec3::new(
+        rng.random_range(0.0..2.0),
+        rng.random_range(0.0..2.0),
+        rng.random_range(0.0..2.0),
+    );
+    if flat {
+        e[rng.random_range(0..3)] = 0.0;
+    }
+    Aabb::new(a, a + e)
+}
+
+/// A ray from around the boxes of [`random_box`] towards them; every
+/// seventh `k` with a zero direction component (either sign). `None` when
+/// the ray is degenerate.
+fn random_ray(rng: &mut SmallRng, k: usize) -> Option<Ray> {
+    let o = Vec3::new(
+        rng.random_range(-4.0..4.0),
+        rng.random_range(-4.0..4.0),
+        rng.random_range(-4.0..4.0),
+    );
+    let aim = Vec3::new(
+        rng.random_range(-2.0..2.0),
+        rng.random_range(-2.0..2.0),
+        rng.random_range(-2.0..2.0),
+    );
+    let mut d = aim - o;
+    if k.is_multiple_of(7) {
+        d[k / 7 % 3] = if k.is_multiple_of(2) { 0.0 } else { -0.0 };
+    }
+    let ray = Ray::new(o, d, rng.random_range(-1.0..1.0), f32::INFINITY);
+    ray.is_valid().then_some(ray)
+}
+
 #[test]
 fn the_node_test_equals_its_scalar_twin_bit_for_bit() {
     let mut rng = SmallRng::seed_from_u64(11);
     let (mut hits, mut clipped) = (0, 0);
-    for k in 0..20_000 {
+    for k in 0..20_000usize {
         let mut node = BvhNode::empty();
         let used = rng.random_range(1..=BVH_WIDTH);
         for i in 0..used {
-            let a = Vec3::new(
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-2.0..2.0),
-            );
-            let mut e = Vec3::new(
-                rng.random_range(0.0..2.0),
-                rng.random_range(0.0..2.0),
-                rng.random_range(0.0..2.0),
-            );
-            if k % 5 == 0 {
-                e.x = 0.0; // flat boxes, as axis-aligned triangles make
-            }
-            node.set_box(i, &Aabb::new(a, a + e));
+            node.set_box(i, &random_box(&mut rng, k.is_multiple_of(5)));
             node.child[i] = 0;
         }
-        let o = Vec3::new(
-            rng.random_range(-4.0..4.0),
-            rng.random_range(-4.0..4.0),
-            rng.random_range(-4.0..4.0),
-        );
-        let aim = Vec3::new(
-            rng.random_range(-2.0..2.0),
-            rng.random_range(-2.0..2.0),
-            rng.random_range(-2.0..2.0),
-        );
-        let mut d = aim - o;
-        if k % 7 == 0 {
-            d.y = if k % 2 == 0 { 0.0 } else { -0.0 };
-        }
-        let ray = Ray::new(o, d, rng.random_range(-1.0..1.0), f32::INFINITY);
-        if !ray.is_valid() {
+        let Some(ray) = random_ray(&mut rng, k) else {
             continue;
-        }
+        };
         let closest = rng.random_range(0.0..8.0);
         let (mask, near) = NodeRay::new(&ray).test(&node, closest);
         let (want, want_near) = node_test_scalar(&ray, &node, closest);
@@ -474,26 +487,13 @@ fn the_eight_wide_node_test_equals_its_scalar_twin_bit_for_bit() {
         }
         let mut rng = SmallRng::seed_from_u64(23);
         let mut hits = 0;
-        for k in 0..20_000 {
+        for k in 0..20_000usize {
             let mut node = BvhNode::empty();
             let mut other = BvhNode::empty();
             let used = rng.random_range(1..=BVH8_WIDTH);
             for i in 0..used {
-                let a = Vec3::new(
-                    rng.random_range(-2.0..2.0),
-                    rng.random_range(-2.0..2.0),
-                    rng.random_range(-2.0..2.0),
-                );
-                let mut e = Vec3::new(
-                    rng.random_range(0.0..2.0),
-                    rng.random_range(0.0..2.0),
-                    rng.random_range(0.0..2.0),
-                );
-                if k % 5 == 0 {
-                    e.z = 0.0;
-                }
                 let half = if i < BVH_WIDTH { &mut node } else { &mut other };
-                half.set_box(i % BVH_WIDTH, &Aabb::new(a, a + e));
+                half.set_box(i % BVH_WIDTH, &random_box(&mut rng, k.is_multiple_of(5)));
                 half.child[i % BVH_WIDTH] = LEAF_BIT;
                 half.count[i % BVH_WIDTH] = 1;
             }
@@ -507,23 +507,9 @@ fn the_eight_wide_node_test_equals_its_scalar_twin_bit_for_bit() {
             }
             let eight: Vec<Node8> = super::node8::collapse(&[root, node, other]);
             assert_eq!(eight.len(), 1, "case {k}: two four-wide nodes fit in one");
-            let o = Vec3::new(
-                rng.random_range(-4.0..4.0),
-                rng.random_range(-4.0..4.0),
-                rng.random_range(-4.0..4.0),
-            );
-            let mut d = Vec3::new(
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-2.0..2.0),
-            ) - o;
-            if k % 7 == 0 {
-                d.x = if k % 2 == 0 { 0.0 } else { -0.0 };
-            }
-            let ray = Ray::new(o, d, rng.random_range(-1.0..1.0), f32::INFINITY);
-            if !ray.is_valid() {
+            let Some(ray) = random_ray(&mut rng, k) else {
                 continue;
-            }
+            };
             let closest = rng.random_range(0.0..8.0);
             let (mask, near) = node8_test_avx2(&ray, &eight[0], closest).expect("AVX2");
             let (want, want_near) = node8_test_scalar(&ray, &eight[0], closest);

@@ -13,7 +13,8 @@
 
 use wide::f32x4;
 
-use super::node::{BVH_WIDTH, BvhNode, EMPTY_SLOT, LEAF_BIT, STACK};
+use super::node::{BVH_WIDTH, BvhNode, EMPTY_SLOT, LEAF_BIT};
+use super::node8::{BVH8_WIDTH, STACK8};
 use crate::geom::numeric::gamma;
 use crate::geom::ray::Ray;
 
@@ -86,39 +87,44 @@ impl NodeRay {
 /// The scalar twin of [`NodeRay::test`]: the same operations lane by lane.
 #[cfg(test)]
 pub(crate) fn node_test_scalar(ray: &Ray, node: &BvhNode, closest: f32) -> (u32, [f32; BVH_WIDTH]) {
-    let (o, inv, d) = (ray.origin.to_array(), ray.inv_dir.to_array(), ray.dir.to_array());
     let mut mask = 0;
     let mut nears = [0.0; BVH_WIDTH];
     for (i, slot_near) in nears.iter_mut().enumerate() {
-        let b = node.child_box(i);
-        let (lo, hi) = (b.min.to_array(), b.max.to_array());
-        let mut near = ray.t_min;
-        let mut far = f32::INFINITY;
-        let mut inside = true;
-        for a in 0..3 {
-            let (n, f) = if inv[a].is_sign_negative() {
-                (hi[a], lo[a])
-            } else {
-                (lo[a], hi[a])
-            };
-            if d[a] == 0.0 {
-                inside &= lo[a] <= o[a] && o[a] <= hi[a];
-                continue;
-            }
-            let tn = (n - o[a]) * inv[a];
-            let tf = (f - o[a]) * inv[a];
-            near = if near < tn { tn } else { near };
-            far = if far > tf { tf } else { far };
-        }
-        let far = far * FAR_WIDEN;
-        let far = if far > closest { closest } else { far };
-        let near = near - near.abs() * NEAR_SLACK;
+        let (met, near) = box_test_scalar(ray, &node.child_box(i), closest);
         *slot_near = near;
-        if inside && near <= far {
-            mask |= 1 << i;
-        }
+        mask |= u32::from(met) << i;
     }
     (mask, nears)
+}
+
+/// One box of the node tests (four- and eight-wide), scalar: whether the
+/// ray may meet it before `closest`, and its lowered entry distance. `max`
+/// and `min` as `maxps` and `minps` compute them: the second operand
+/// unless the first is greater (less).
+#[cfg(test)]
+pub(crate) fn box_test_scalar(ray: &Ray, b: &crate::geom::aabb::Aabb, closest: f32) -> (bool, f32) {
+    let (o, inv, d) = (ray.origin.to_array(), ray.inv_dir.to_array(), ray.dir.to_array());
+    let (lo, hi) = (b.min.to_array(), b.max.to_array());
+    let (mut near, mut far, mut inside) = (ray.t_min, f32::INFINITY, true);
+    for a in 0..3 {
+        let (n, f) = if inv[a].is_sign_negative() {
+            (hi[a], lo[a])
+        } else {
+            (lo[a], hi[a])
+        };
+        if d[a] == 0.0 {
+            inside &= lo[a] <= o[a] && o[a] <= hi[a];
+            continue;
+        }
+        let tn = (n - o[a]) * inv[a];
+        let tf = (f - o[a]) * inv[a];
+        near = if near > tn { near } else { tn };
+        far = if far < tf { far } else { tf };
+    }
+    let far = far * FAR_WIDEN;
+    let far = if far < closest { far } else { closest };
+    let near = near - near.abs() * NEAR_SLACK;
+    (inside && near <= far, near)
 }
 
 /// A deferred child: its slot value, triangle count and entry distance.
@@ -129,6 +135,19 @@ struct Entry {
     near: f32,
 }
 
+/// A wide node's slots as the single-ray walk reads them: child value and
+/// triangle count.
+pub(crate) trait SlotNode {
+    fn slot(&self, i: usize) -> (u32, u32);
+}
+
+impl SlotNode for BvhNode {
+    #[inline]
+    fn slot(&self, i: usize) -> (u32, u32) {
+        (self.child[i], self.count[i])
+    }
+}
+
 /// Walks the children of `nodes` (root 0) that `ray` meets, nearest first,
 /// and calls `leaf(offset, count, closest)` for each leaf reached before
 /// `closest`, which the callback lowers on a hit; it returns `true` to stop
@@ -137,7 +156,7 @@ struct Entry {
 ///
 /// `root_box_hit`: the caller clipped the ray to the tree's box already.
 #[inline]
-pub(crate) fn walk<L>(nodes: &[BvhNode], ray: &Ray, closest: &mut f32, mut leaf: L) -> bool
+pub(crate) fn walk<L>(nodes: &[BvhNode], ray: &Ray, closest: &mut f32, leaf: L) -> bool
 where
     L: FnMut(u32, u32, &mut f32) -> bool,
 {
@@ -145,9 +164,32 @@ where
         return false;
     }
     let nr = NodeRay::new(ray);
-    // PERF: the stack is not zeroed (a 2.3 kB memset per ray): entries
-    // are written before they are read.
-    let mut stack = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
+    walk_nodes(
+        nodes,
+        closest,
+        |node, closest| {
+            let (mask, near) = nr.test(node, closest);
+            let near = near.to_array();
+            (mask, std::array::from_fn(|i| if i < BVH_WIDTH { near[i] } else { 0.0 }))
+        },
+        leaf,
+    )
+}
+
+/// The walk of [`walk`] over nodes of up to [`BVH8_WIDTH`] slots:
+/// `test(node, closest)` gives the slots the ray meets and their entry
+/// distances. Inlined into the four-wide walk and the AVX2 eight-wide one
+/// (`walk8.rs`).
+#[inline(always)]
+#[allow(clippy::inline_always)]
+pub(crate) fn walk_nodes<Nd: SlotNode, T, L>(nodes: &[Nd], closest: &mut f32, mut test: T, mut leaf: L) -> bool
+where
+    T: FnMut(&Nd, f32) -> (u32, [f32; BVH8_WIDTH]),
+    L: FnMut(u32, u32, &mut f32) -> bool,
+{
+    // PERF: the stack is not zeroed (a memset of kilobytes per ray):
+    // entries are written before they are read.
+    let mut stack = [std::mem::MaybeUninit::<Entry>::uninit(); STACK8];
     let mut sp = 0usize;
     let mut cur = Entry {
         child: 0,
@@ -161,21 +203,23 @@ where
             }
         } else {
             let node = &nodes[cur.child as usize];
-            let (mut mask, near) = nr.test(node, *closest);
+            let (mut mask, near) = test(node, *closest);
+            let entry = |i: usize| {
+                let (child, count) = node.slot(i);
+                Entry {
+                    child,
+                    count,
+                    near: near[i],
+                }
+            };
             if mask != 0 {
-                let near = near.to_array();
                 // The nearest hit child goes on at once, the others are
                 // pushed farthest first.
                 if mask.is_power_of_two() {
-                    let i = mask.trailing_zeros() as usize;
-                    cur = Entry {
-                        child: node.child[i],
-                        count: node.count[i],
-                        near: near[i],
-                    };
+                    cur = entry(mask.trailing_zeros() as usize);
                     continue;
                 }
-                let mut order = [0usize; BVH_WIDTH];
+                let mut order = [0usize; BVH8_WIDTH];
                 let mut n = 0;
                 while mask != 0 {
                     let i = mask.trailing_zeros() as usize;
@@ -190,19 +234,10 @@ where
                     n += 1;
                 }
                 for &i in &order[..n - 1] {
-                    stack[sp].write(Entry {
-                        child: node.child[i],
-                        count: node.count[i],
-                        near: near[i],
-                    });
+                    stack[sp].write(entry(i));
                     sp += 1;
                 }
-                let i = order[n - 1];
-                cur = Entry {
-                    child: node.child[i],
-                    count: node.count[i],
-                    near: near[i],
-                };
+                cur = entry(order[n - 1]);
                 debug_assert!(cur.child != EMPTY_SLOT);
                 continue;
             }

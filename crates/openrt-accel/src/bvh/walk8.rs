@@ -11,9 +11,8 @@ use core::arch::x86_64::{
     _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_storeu_ps, _mm256_sub_ps,
 };
 
-use super::node::LEAF_BIT;
-use super::node8::{BVH8_WIDTH, Node8, STACK8};
-use super::walk::{FAR_WIDEN, NEAR_SLACK};
+use super::node8::{BVH8_WIDTH, Node8};
+use super::walk::{FAR_WIDEN, NEAR_SLACK, SlotNode, walk_nodes};
 use crate::geom::ray::Ray;
 
 /// A ray's constants for the eight-wide node test.
@@ -87,36 +86,12 @@ fn row(r: &[f32; BVH8_WIDTH]) -> __m256 {
 /// The scalar twin of the AVX2 node test: the same operations lane by lane.
 #[cfg(test)]
 pub(crate) fn node8_test_scalar(ray: &Ray, node: &Node8, closest: f32) -> (u32, [f32; BVH8_WIDTH]) {
-    let (o, inv, d) = (ray.origin.to_array(), ray.inv_dir.to_array(), ray.dir.to_array());
     let mut mask = 0;
     let mut nears = [0.0; BVH8_WIDTH];
     for (i, slot_near) in nears.iter_mut().enumerate() {
-        let b = node.child_box(i);
-        let (lo, hi) = (b.min.to_array(), b.max.to_array());
-        let (mut near, mut far, mut inside) = (ray.t_min, f32::INFINITY, true);
-        for a in 0..3 {
-            let (n, f) = if inv[a].is_sign_negative() {
-                (hi[a], lo[a])
-            } else {
-                (lo[a], hi[a])
-            };
-            if d[a] == 0.0 {
-                inside &= lo[a] <= o[a] && o[a] <= hi[a];
-                continue;
-            }
-            // maxps / minps: the second operand unless the first is greater / less.
-            let tn = (n - o[a]) * inv[a];
-            let tf = (f - o[a]) * inv[a];
-            near = if near > tn { near } else { tn };
-            far = if far < tf { far } else { tf };
-        }
-        let far = far * FAR_WIDEN;
-        let far = if far < closest { far } else { closest };
-        let near = near - near.abs() * NEAR_SLACK;
+        let (met, near) = super::walk::box_test_scalar(ray, &node.child_box(i), closest);
         *slot_near = near;
-        if inside && near <= far {
-            mask |= 1 << i;
-        }
+        mask |= u32::from(met) << i;
     }
     (mask, nears)
 }
@@ -128,12 +103,11 @@ pub(crate) fn node8_test_avx2(ray: &Ray, node: &Node8, closest: f32) -> Option<(
     crate::packet::width::avx2().then(|| unsafe { NodeRay8::new(ray).test(node, closest) })
 }
 
-/// A deferred child: its slot value, triangle count and entry distance.
-#[derive(Clone, Copy)]
-struct Entry {
-    child: u32,
-    count: u32,
-    near: f32,
+impl SlotNode for Node8 {
+    #[inline]
+    fn slot(&self, i: usize) -> (u32, u32) {
+        (self.child[i], self.count[i])
+    }
 }
 
 /// [`super::walk::walk`] over the eight-wide tree `nodes` (root 0): the
@@ -144,7 +118,7 @@ struct Entry {
 /// The CPU must have AVX2 (`crate::packet::width::avx2()`).
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(crate) unsafe fn walk8<L>(nodes: &[Node8], ray: &Ray, closest: &mut f32, mut leaf: L) -> bool
+pub(crate) unsafe fn walk8<L>(nodes: &[Node8], ray: &Ray, closest: &mut f32, leaf: L) -> bool
 where
     L: FnMut(u32, u32, &mut f32) -> bool,
 {
@@ -152,74 +126,5 @@ where
         return false;
     }
     let nr = NodeRay8::new(ray);
-    // PERF: not zeroed (a 7 kB memset per ray); written before read.
-    let mut stack = [std::mem::MaybeUninit::<Entry>::uninit(); STACK8];
-    let mut sp = 0usize;
-    let mut cur = Entry {
-        child: 0,
-        count: 0,
-        near: f32::NEG_INFINITY,
-    };
-    loop {
-        if cur.child & LEAF_BIT != 0 {
-            if leaf(cur.child & !LEAF_BIT, cur.count, closest) {
-                return true;
-            }
-        } else {
-            let node = &nodes[cur.child as usize];
-            let (mut mask, near) = nr.test(node, *closest);
-            if mask != 0 {
-                if mask.is_power_of_two() {
-                    let i = mask.trailing_zeros() as usize;
-                    cur = Entry {
-                        child: node.child[i],
-                        count: node.count[i],
-                        near: near[i],
-                    };
-                    continue;
-                }
-                // Insertion by entry distance, farthest first; the nearest
-                // goes on at once.
-                let mut order = [0usize; BVH8_WIDTH];
-                let mut n = 0;
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let mut j = n;
-                    while j > 0 && near[order[j - 1]] < near[i] {
-                        order[j] = order[j - 1];
-                        j -= 1;
-                    }
-                    order[j] = i;
-                    n += 1;
-                }
-                for &i in &order[..n - 1] {
-                    stack[sp].write(Entry {
-                        child: node.child[i],
-                        count: node.count[i],
-                        near: near[i],
-                    });
-                    sp += 1;
-                }
-                let i = order[n - 1];
-                cur = Entry {
-                    child: node.child[i],
-                    count: node.count[i],
-                    near: near[i],
-                };
-                continue;
-            }
-        }
-        loop {
-            if sp == 0 {
-                return false;
-            }
-            sp -= 1;
-            // SAFETY: entries below `sp` were written by the pushes above.
-            cur = unsafe { stack[sp].assume_init() };
-            if cur.near <= *closest {
-                break;
-            }
-        }
-    }
+    walk_nodes(nodes, closest, |node, closest| nr.test(node, closest), leaf)
 }
