@@ -153,7 +153,7 @@ struct Quality {
     /// `embree` and `embree-packet`.
     #[arg(long, default_value = "kd")]
     backend: BackendChoice,
-    /// Object structure: `kd` (the paper's kd-trees) or `bvh` (4-wide BVHs); the same images
+    /// Object structure: `kd` (the paper's kd-trees) or `bvh` (wide BVHs: 4-wide packets, 8-wide single rays on AVX2); the same images
     /// (default: the scene's `accel`, else `kd`).
     #[arg(long)]
     accel: Option<Accel>,

@@ -2,8 +2,9 @@
 //!
 //! Four children per node with their boxes in SIMD order (`node.rs`), a
 //! binned SAH build grown directly into wide nodes (`build.rs`), single-ray
-//! traversal testing a node's four boxes at once (`walk.rs`), and refits for
-//! deforming objects (`refit.rs`). Leaves reuse the kd-tree's triangle
+//! traversal testing a node's four boxes at once (`walk.rs`), on AVX2 CPUs
+//! an eight-wide copy for single rays (`node8.rs`, `walk8.rs`), and refits
+//! for deforming objects (`refit.rs`). Leaves reuse the kd-tree's triangle
 //! blocks and kernels, so a BVH finds the same hits, bit for bit, as a
 //! kd-tree over the same triangles (tested against each other and the f64
 //! oracle).
