@@ -328,6 +328,8 @@ impl Cluster {
                 // whenever no worker is asking.
                 if let Some((r, scene)) = local.filter(|_| self.root_renders && !queue.is_empty() && failure.is_none())
                 {
+                    // One thread's batch, whatever rank 0's threads: while
+                    // it renders, it answers no worker's request.
                     let give = queue.take(0, batch(1));
                     let (done, _) = r
                         .render_tiles(scene, env, camera, settings, Some(&give))
@@ -410,6 +412,8 @@ impl Cluster {
         // One pool: the replica's commit and the tiles.
         replica.set_threads(threads).map_err(|e| e.to_string())?;
         let mut renderer = crate::new_renderer(replica.pool().map_err(|e| e.to_string())?);
+        // Sent with every request: rank 0 sizes this worker's batches by it.
+        let reported = u32::try_from(threads).unwrap_or(MAX_BATCH_THREADS);
         let root = self.world.process_at_rank(0);
         let fault = std::env::var("OPENRT_MPI_FAULT").ok();
         let mut env: Option<std::sync::Arc<Environment>> = None;
@@ -425,7 +429,7 @@ impl Cluster {
                 }
             }
             let mut req = Request {
-                threads: u32::try_from(threads).unwrap_or(MAX_BATCH_THREADS),
+                threads: reported,
                 ..Request::default()
             };
             let frame = postcard::from_bytes::<FrameMsg>(&bytes)
@@ -451,11 +455,8 @@ impl Cluster {
                 env = Some(std::sync::Arc::new(e.env()));
             }
             loop {
-                let out = postcard::to_allocvec(&req).map_err(|e| e.to_string())?;
-                req = Request {
-                    threads: req.threads,
-                    ..Request::default()
-                };
+                let out = postcard::to_allocvec(&std::mem::take(&mut req)).map_err(|e| e.to_string())?;
+                req.threads = reported;
                 root.send_with_tag(&out[..], TAG_REQUEST);
                 let (give, _) = root.receive_vec_with_tag::<u32>(TAG_TILES);
                 if give.is_empty() {
