@@ -12,7 +12,7 @@
 //! [`crate::kd::fast_build::PARALLEL_MIN`] triangles are built as tasks of the pool the build
 //! runs in.
 
-use glam::{Vec3, Vec3A};
+use glam::{BVec3A, Vec3, Vec3A};
 
 use super::node::{BVH_WIDTH, BvhNode, LEAF_BIT};
 use crate::geom::aabb::Aabb;
@@ -50,7 +50,7 @@ impl Ref {
 
 /// A box as two `Vec3A` corners (empty: `+inf` / `-inf`).
 #[derive(Clone, Copy)]
-struct Box3A(Vec3A, Vec3A);
+pub(crate) struct Box3A(Vec3A, Vec3A);
 
 impl Box3A {
     const EMPTY: Self = Self(Vec3A::INFINITY, Vec3A::NEG_INFINITY);
@@ -60,9 +60,13 @@ impl Box3A {
         Self(self.0.min(o.0), self.1.max(o.1))
     }
 
+    /// Surface area of a box that holds a point (the empty box's would
+    /// be garbage): [`Aabb::surface_area`]'s arithmetic in one register.
     #[inline]
     fn area(self) -> f32 {
-        self.aabb().surface_area()
+        let e = self.1 - self.0;
+        let [x, y, z] = (e * Vec3A::new(e.y, e.z, e.x)).to_array();
+        2.0 * (x + y + z)
     }
 
     fn aabb(self) -> Aabb {
@@ -90,28 +94,48 @@ struct Kid {
     start: usize,
     end: usize,
     bounds: Aabb,
+    /// Bounds of the box centres, when the split that made it found them.
+    centres: Option<Box3A>,
     leaf: bool,
 }
 
-/// Where to split a range: at `mid` after partitioning (with the two
-/// sides' bounds when binning found them), or not at all.
-enum Split {
-    Leaf,
-    At(usize, Option<(Aabb, Aabb)>),
+/// What a binned split learns of its two sides: their bounds and the
+/// bounds of their box centres.
+struct Sides {
+    left: Aabb,
+    right: Aabb,
+    centres: (Box3A, Box3A),
 }
 
-/// The best SAH split of `refs` (partitioned in place), or a leaf.
-fn split(refs: &mut [Ref], bounds: &Aabb, depth: usize) -> Split {
+/// Where to split a range: at `mid` after partitioning (with what binning
+/// learnt of the two sides), or not at all.
+enum Split {
+    Leaf,
+    At(usize, Option<Sides>),
+}
+
+/// Bounds of the box centres of a range of references.
+fn centres_of(refs: &[Ref]) -> Box3A {
+    refs.iter().fold(Box3A::EMPTY, |b, r| {
+        let c = r.centre();
+        Box3A(b.0.min(c), b.1.max(c))
+    })
+}
+
+/// The best SAH split of `refs` (partitioned in place), or a leaf;
+/// `centres` bounds the box centres when the caller knows them.
+fn split(refs: &mut [Ref], bounds: &Aabb, centres: Option<Box3A>, depth: usize) -> Split {
     let n = refs.len();
     if n <= 1 {
         return Split::Leaf;
     }
-    let (clo, chi) = refs.iter().fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(l, h), r| {
-        (l.min(r.centre()), h.max(r.centre()))
-    });
+    let Box3A(clo, chi) = centres.unwrap_or_else(|| centres_of(refs));
     let ext = chi - clo;
+    let usable = ext.cmpgt(Vec3A::ZERO) & ext.is_finite_mask();
+    let scale = Vec3A::select(usable, BINS as f32 / ext, Vec3A::ZERO);
     if depth < MEDIAN_DEPTH
-        && let Some(best) = best_bin(refs, clo, ext)
+        && usable.any()
+        && let Some(best) = best_bin(refs, clo, scale, usable)
     {
         let area = bounds.surface_area().max(f32::MIN_POSITIVE);
         let split_cost = TRAVERSAL_COST + best.cost / area;
@@ -119,10 +143,16 @@ fn split(refs: &mut [Ref], bounds: &Aabb, depth: usize) -> Split {
             return Split::Leaf;
         }
         let (axis, bin) = (best.axis, best.bin);
-        let scale = BINS as f32 / ext[axis];
-        let mid = partition(refs, |r| bin_of(r.centre()[axis], clo[axis], scale) <= bin);
+        let (mid, lc, rc) = partition(refs, |r| bins_of(r.centre(), clo, scale)[axis] <= bin);
         if mid > 0 && mid < n {
-            return Split::At(mid, Some((best.left, best.right)));
+            return Split::At(
+                mid,
+                Some(Sides {
+                    left: best.left,
+                    right: best.right,
+                    centres: (lc, rc),
+                }),
+            );
         }
     } else if n <= 2 {
         return Split::Leaf;
@@ -135,9 +165,37 @@ fn split(refs: &mut [Ref], bounds: &Aabb, depth: usize) -> Split {
     Split::At(mid, None)
 }
 
+/// The bins of a centre on the three axes: `(c - lo) * scale` clamped to
+/// `0..=BINS - 1` and truncated (NaN, from an axis that bins nothing, goes
+/// to bin 0). Binning and partitioning both call it, so they agree.
+///
+/// PERF: one SSE conversion for the three axes; a saturating `as usize`
+/// per axis was a sixth of the build's time.
 #[inline]
-fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
-    (((c - lo) * scale) as usize).min(BINS - 1)
+fn bins_of(c: Vec3A, lo: Vec3A, scale: Vec3A) -> [usize; 3] {
+    // `max` first: SSE's `maxps` answers its second operand (0) for NaN,
+    // as `f32::max` does.
+    let f = ((c - lo) * scale).max(Vec3A::ZERO).min(Vec3A::splat((BINS - 1) as f32));
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128, _mm_cvtsi128_si32, _mm_cvttps_epi32, _mm_shuffle_epi32};
+        // SAFETY: SSE2 is part of every x86_64 CPU (the target's baseline);
+        // the intrinsics touch registers only.
+        let [x, y, z] = unsafe {
+            let i = _mm_cvttps_epi32(__m128::from(f));
+            [
+                _mm_cvtsi128_si32(i),
+                _mm_cvtsi128_si32(_mm_shuffle_epi32::<0b01>(i)),
+                _mm_cvtsi128_si32(_mm_shuffle_epi32::<0b10>(i)),
+            ]
+        };
+        // The lanes hold 0..=BINS - 1: the casts are exact.
+        [x as usize, y as usize, z as usize]
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        f.to_array().map(|x| x as usize)
+    }
 }
 
 /// The cheapest binned plane.
@@ -154,24 +212,19 @@ struct BestBin {
 
 /// The cheapest binned plane over the three axes, binned in one pass over
 /// the references; `None` when no axis separates the centres.
-fn best_bin(refs: &[Ref], clo: Vec3A, ext: Vec3A) -> Option<BestBin> {
-    let usable: [bool; 3] = std::array::from_fn(|a| ext[a] > 0.0 && ext[a].is_finite());
-    if !usable.iter().any(|&u| u) {
-        return None;
-    }
-    let scale: [f32; 3] = std::array::from_fn(|a| if usable[a] { BINS as f32 / ext[a] } else { 0.0 });
+fn best_bin(refs: &[Ref], clo: Vec3A, scale: Vec3A, usable: BVec3A) -> Option<BestBin> {
     let mut boxes = [[Box3A::EMPTY; BINS]; 3];
     let mut counts = [[0usize; BINS]; 3];
     for r in refs {
-        let c = r.centre();
+        let bins = bins_of(r.centre(), clo, scale);
         for a in 0..3 {
-            let b = bin_of(c[a], clo[a], scale[a]);
+            let b = bins[a];
             counts[a][b] += 1;
             boxes[a][b] = boxes[a][b].union(Box3A(r.lo, r.hi));
         }
     }
     let mut best: Option<BestBin> = None;
-    for axis in (0..3).filter(|&a| usable[a]) {
+    for axis in (0..3).filter(|&a| usable.test(a)) {
         let (boxes, counts) = (&boxes[axis], &counts[axis]);
         // Right-to-left sweep of the right sides' boxes and counts.
         let mut right_box = [Box3A::EMPTY; BINS];
@@ -185,9 +238,15 @@ fn best_bin(refs: &[Ref], clo: Vec3A, ext: Vec3A) -> Option<BestBin> {
         }
         let (mut acc, mut n) = (Box3A::EMPTY, 0);
         for b in 0..BINS - 1 {
+            // An empty bin leaves both sides as the plane before it left
+            // them: no cheaper plane (and most bins of a small range are
+            // empty).
+            if counts[b] == 0 {
+                continue;
+            }
             acc = acc.union(boxes[b]);
             n += counts[b];
-            if n == 0 || right_n[b + 1] == 0 {
+            if right_n[b + 1] == 0 {
                 continue;
             }
             let cost = acc.area() * leaf_cost(n) + right_box[b + 1].area() * leaf_cost(right_n[b + 1]);
@@ -206,34 +265,41 @@ fn best_bin(refs: &[Ref], clo: Vec3A, ext: Vec3A) -> Option<BestBin> {
 }
 
 /// Partitions `refs` so that those for which `left` holds come first;
-/// returns how many they are.
-fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
+/// returns how many they are and the bounds of the two sides' box centres
+/// (PERF: the children's splits need not pass over their ranges for them).
+fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Box3A, Box3A) {
+    let (mut lc, mut rc) = (Box3A::EMPTY, Box3A::EMPTY);
     let mut i = 0;
     let mut j = refs.len();
     while i < j {
+        let c = refs[i].centre();
         if left(&refs[i]) {
+            lc = Box3A(lc.0.min(c), lc.1.max(c));
             i += 1;
         } else {
+            rc = Box3A(rc.0.min(c), rc.1.max(c));
             j -= 1;
             refs.swap(i, j);
         }
     }
-    i
+    (i, lc, rc)
 }
 
 /// Grows the node's children: the range split at its child of largest
 /// area until there are [`BVH_WIDTH`] or none splits.
-fn grow(refs: &mut [Ref], bounds: Aabb, depth: usize) -> ([Kid; BVH_WIDTH], usize) {
+fn grow(refs: &mut [Ref], bounds: Aabb, centres: Option<Box3A>, depth: usize) -> ([Kid; BVH_WIDTH], usize) {
     let mut kids = [Kid {
         start: 0,
         end: 0,
         bounds: Aabb::EMPTY,
+        centres: None,
         leaf: true,
     }; BVH_WIDTH];
     kids[0] = Kid {
         start: 0,
         end: refs.len(),
         bounds,
+        centres,
         leaf: refs.len() <= 1,
     };
     let mut n = 1;
@@ -244,22 +310,33 @@ fn grow(refs: &mut [Ref], bounds: Aabb, depth: usize) -> ([Kid; BVH_WIDTH], usiz
         else {
             break;
         };
-        let Kid { start, end, bounds, .. } = kids[k];
-        match split(&mut refs[start..end], &bounds, depth) {
+        let Kid {
+            start,
+            end,
+            bounds,
+            centres,
+            ..
+        } = kids[k];
+        match split(&mut refs[start..end], &bounds, centres, depth) {
             Split::Leaf => kids[k].leaf = true,
             Split::At(mid, sides) => {
                 let (l, r) = (start..start + mid, start + mid..end);
-                let (lb, rb) = sides.unwrap_or_else(|| (bounds_of(&refs[l.clone()]), bounds_of(&refs[r.clone()])));
+                let (lb, rb, lc, rc) = match sides {
+                    Some(s) => (s.left, s.right, Some(s.centres.0), Some(s.centres.1)),
+                    None => (bounds_of(&refs[l.clone()]), bounds_of(&refs[r.clone()]), None, None),
+                };
                 kids[k] = Kid {
                     start: l.start,
                     end: l.end,
                     bounds: lb,
+                    centres: lc,
                     leaf: l.len() <= 1,
                 };
                 kids[n] = Kid {
                     start: r.start,
                     end: r.end,
                     bounds: rb,
+                    centres: rc,
                     leaf: r.len() <= 1,
                 };
                 n += 1;
@@ -272,7 +349,7 @@ fn grow(refs: &mut [Ref], bounds: Aabb, depth: usize) -> ([Kid; BVH_WIDTH], usiz
         let count = kid.end - kid.start;
         if !kid.leaf && count <= BVH_MAX_LEAF {
             kid.leaf = matches!(
-                split(&mut refs[kid.start..kid.end], &kid.bounds, depth + 1),
+                split(&mut refs[kid.start..kid.end], &kid.bounds, kid.centres, depth + 1),
                 Split::Leaf
             );
         }
@@ -283,18 +360,20 @@ fn grow(refs: &mut [Ref], bounds: Aabb, depth: usize) -> ([Kid; BVH_WIDTH], usiz
 
 /// Builds the subtree of `refs` (whose first entry is entry `base` of the
 /// whole array) into `nodes`, its root first; leaves hold
-/// `LEAF_BIT | (base + start)` for now. Returns the deepest wide level.
+/// `LEAF_BIT | (base + start)` for now. `centres` bounds the box centres
+/// when the parent's split found them. Returns the deepest wide level.
 pub(crate) fn build_into(
     refs: &mut [Ref],
     base: usize,
     bounds: Aabb,
+    centres: Option<Box3A>,
     depth: usize,
     parallel: bool,
     nodes: &mut Vec<BvhNode>,
 ) -> usize {
     let me = nodes.len();
     nodes.push(BvhNode::empty());
-    let (kids, n) = grow(refs, bounds, depth);
+    let (kids, n) = grow(refs, bounds, centres, depth);
     let mut deepest = depth + 1;
     let big = parallel
         && kids[..n]
@@ -325,7 +404,7 @@ pub(crate) fn build_into(
                 .map(|(i, mine)| {
                     let k = kids[i];
                     let mut sub = Vec::new();
-                    let d = build_into(mine, base + k.start, k.bounds, depth + 1, parallel, &mut sub);
+                    let d = build_into(mine, base + k.start, k.bounds, k.centres, depth + 1, parallel, &mut sub);
                     (i, sub, d)
                 })
                 .collect()
@@ -365,6 +444,7 @@ pub(crate) fn build_into(
                 &mut refs[k.start..k.end],
                 base + k.start,
                 k.bounds,
+                k.centres,
                 depth + 1,
                 parallel,
                 nodes,
@@ -373,4 +453,53 @@ pub(crate) fn build_into(
         }
     }
     deepest
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3A;
+    use rand::{Rng, SeedableRng, rngs::SmallRng};
+
+    use super::{BINS, bins_of};
+
+    /// The scalar twin: one axis, `as usize` saturating (NaN to 0).
+    fn bin_scalar(c: f32, lo: f32, scale: f32) -> usize {
+        (((c - lo) * scale) as usize).min(BINS - 1)
+    }
+
+    fn check(c: Vec3A, lo: Vec3A, scale: Vec3A) {
+        let got = bins_of(c, lo, scale);
+        for a in 0..3 {
+            assert_eq!(
+                got[a],
+                bin_scalar(c[a], lo[a], scale[a]),
+                "axis {a}: c {c:?} lo {lo:?} scale {scale:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn bins_of_matches_the_scalar_twin() {
+        let mut rng = SmallRng::seed_from_u64(11);
+        for _ in 0..100_000 {
+            let lo = Vec3A::from_array(std::array::from_fn(|_| rng.random_range(-100.0..100.0)));
+            let ext = Vec3A::from_array(std::array::from_fn(|_| rng.random_range(1e-6f32..50.0)));
+            let c = lo + ext * Vec3A::from_array(std::array::from_fn(|_| rng.random_range(0.0f32..=1.0)));
+            check(c, lo, BINS as f32 / ext);
+        }
+        // The ends of the range, exact bin borders, unusable axes (scale 0),
+        // and the NaN an overflowing axis gives.
+        let lo = Vec3A::new(-1.0, 0.0, 3.0);
+        let ext = Vec3A::new(2.0, 16.0, 0.5);
+        let scale = BINS as f32 / ext;
+        for k in 0..=BINS {
+            let c = lo + ext * (k as f32 / BINS as f32);
+            check(c, lo, scale);
+            check(c, lo, Vec3A::ZERO);
+        }
+        check(Vec3A::splat(f32::MAX), Vec3A::splat(-f32::MAX), Vec3A::ZERO);
+        check(Vec3A::splat(f32::MAX), Vec3A::splat(-f32::MAX), Vec3A::splat(1e-30));
+        check(Vec3A::splat(f32::NAN), Vec3A::ZERO, Vec3A::ONE);
+        check(Vec3A::splat(1e30), Vec3A::ZERO, Vec3A::splat(1e30));
+    }
 }

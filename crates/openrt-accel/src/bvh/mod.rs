@@ -213,7 +213,7 @@ impl Bvh {
         let mut depth = 0;
         if !refs.is_empty() {
             let parallel = rayon::current_thread_index().is_some();
-            depth = build_into(&mut refs, 0, bounds, 0, parallel, &mut nodes);
+            depth = build_into(&mut refs, 0, bounds, None, 0, parallel, &mut nodes);
         }
         let valid = refs.len();
         let ids: Vec<u32> = refs.iter().map(|r| r.id).collect();
