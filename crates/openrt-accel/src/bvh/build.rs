@@ -16,6 +16,7 @@ use glam::{BVec3A, Vec3, Vec3A};
 
 use super::node::{BVH_WIDTH, BvhNode, LEAF_BIT};
 use crate::geom::aabb::Aabb;
+use crate::leaf::blocks::LANES;
 
 /// Bins per axis.
 pub(crate) const BINS: usize = 16;
@@ -82,10 +83,10 @@ pub(crate) fn bounds_of(refs: &[Ref]) -> Aabb {
     refs.iter().fold(Box3A::EMPTY, |b, r| b.union(Box3A(r.lo, r.hi))).aabb()
 }
 
-/// Leaf cost of `n` triangles: blocks of four are tested at once.
+/// Leaf cost of `n` triangles: blocks of [`LANES`] are tested at once.
 #[inline]
 fn leaf_cost(n: usize) -> f32 {
-    n.div_ceil(4) as f32
+    n.div_ceil(LANES) as f32
 }
 
 /// A candidate child of the node being grown.
@@ -126,7 +127,9 @@ fn centres_of(refs: &[Ref]) -> Box3A {
 /// `centres` bounds the box centres when the caller knows them.
 fn split(refs: &mut [Ref], bounds: &Aabb, centres: Option<Box3A>, depth: usize) -> Split {
     let n = refs.len();
-    if n <= 1 {
+    // Up to one block, a leaf costs one block test, and any split at least
+    // a node visit and a block test: a leaf, without binning.
+    if n <= LANES {
         return Split::Leaf;
     }
     let Box3A(clo, chi) = centres.unwrap_or_else(|| centres_of(refs));
@@ -300,7 +303,7 @@ fn grow(refs: &mut [Ref], bounds: Aabb, centres: Option<Box3A>, depth: usize) ->
         end: refs.len(),
         bounds,
         centres,
-        leaf: refs.len() <= 1,
+        leaf: refs.len() <= LANES,
     };
     let mut n = 1;
     while n < BVH_WIDTH {
@@ -330,14 +333,14 @@ fn grow(refs: &mut [Ref], bounds: Aabb, centres: Option<Box3A>, depth: usize) ->
                     end: l.end,
                     bounds: lb,
                     centres: lc,
-                    leaf: l.len() <= 1,
+                    leaf: l.len() <= LANES,
                 };
                 kids[n] = Kid {
                     start: r.start,
                     end: r.end,
                     bounds: rb,
                     centres: rc,
-                    leaf: r.len() <= 1,
+                    leaf: r.len() <= LANES,
                 };
                 n += 1;
             }
