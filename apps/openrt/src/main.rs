@@ -203,7 +203,7 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         threads: Option<Vec<usize>>,
         /// Triangles of the skinned glTF figures whose per-frame cost is
-        /// measured, comma-separated (an empty list measures none).
+        /// measured, comma-separated (`0` measures none).
         #[arg(long, default_value = "10000,100000,1000000", value_delimiter = ',')]
         deform_sizes: Vec<usize>,
         /// Report file (default: docs/BENCHMARKS.md; with `--device`, docs/BENCHMARKS-DEVICE.md).

@@ -79,8 +79,13 @@ where
 pub const BVH_MAX_PRIMITIVES: usize = 1 << 28;
 
 /// Refits whose SAH cost grew past this factor of the last full build's are
-/// rebuilt afresh (as the kd-tree's refit does with its own limit).
-pub const BVH_REFIT_COST_LIMIT: f64 = 1.5;
+/// rebuilt afresh (the kd-tree's refit uses the same factor).
+///
+/// PERF: at 1.5 the museums' Whitted frames with refitted BVHs took 1.08x
+/// and 1.16x (museum4k, museum16k) those with fresh ones; at 1.25 they
+/// match them (0.93-0.99x, bench builders table) while most frames are
+/// still refits.
+pub const BVH_REFIT_COST_LIMIT: f64 = crate::kd::fast_build::DEFAULT_REFIT_COST_LIMIT;
 
 /// Largest tree validated automatically after its build in debug-assertion builds.
 #[cfg(debug_assertions)]
