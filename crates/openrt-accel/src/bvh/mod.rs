@@ -195,11 +195,7 @@ fn refs_of(tris: &[Triangle]) -> Vec<Ref> {
     tris.iter()
         .enumerate()
         .filter(|(_, t)| is_valid_triangle(t))
-        .map(|(i, t)| Ref {
-            lo: t[0].min(t[1]).min(t[2]).into(),
-            hi: t[0].max(t[1]).max(t[2]).into(),
-            id: i as u32,
-        })
+        .map(|(i, t)| Ref::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]), i as u32))
         .collect()
 }
 
@@ -221,7 +217,7 @@ impl Bvh {
             depth = build_into(&mut refs, 0, bounds, None, 0, parallel, &mut nodes);
         }
         let valid = refs.len();
-        let ids: Vec<u32> = refs.iter().map(|r| r.id).collect();
+        let ids: Vec<u32> = refs.iter().map(Ref::id).collect();
         let (prim_ids, blocks, leaves) = pack(&mut nodes, &ids, &tris);
         let mut bvh = Self {
             nodes,
