@@ -134,7 +134,8 @@ fn measure_scene(
                         .map_err(|e| e.to_string())?;
                 }
             } else {
-                r.render(&scene, &player.env(), &cam, &tiny).map_err(|e| e.to_string())?;
+                r.render(&scene, &player.env(), &cam, &tiny)
+                    .map_err(|e| e.to_string())?;
             }
         }
     }
