@@ -663,7 +663,7 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
     let params = FastParams::default();
     let (mut fresh, mut refit) = (Vec::new(), Vec::new());
     #[cfg(feature = "embree")]
-    let mut emb = Vec::new();
+    let (mut emb, embree) = (Vec::new(), openrt_accel::EmbreeLowBuilds::new(threads)?);
     #[cfg(not(feature = "embree"))]
     let emb: Vec<f64> = Vec::new();
     let (mut fresh_cost, mut refit_cost, mut refits, mut triangles) = (0.0, 0.0, 0, 0);
@@ -727,12 +727,7 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
         bvh_refits += usize::from(d.stats().refitted);
         bvh_prev = Some(d);
         #[cfg(feature = "embree")]
-        {
-            let t0 = Instant::now();
-            let m = openrt_accel::EmbreeMesh::new(&tris, false)?;
-            emb.push(t0.elapsed().as_secs_f64() * 1e3);
-            drop(m);
-        }
+        emb.push(embree.secs(&tris)? * 1e3);
     }
     let n = fresh.len();
     if n == 0 {

@@ -100,6 +100,35 @@ pub fn embree_medium_build_secs(tris: &[Triangle]) -> Result<f64, String> {
     Ok(secs)
 }
 
+/// Embree's LOW builds timed on one device made once (its worker threads
+/// started before the first clock), as a renderer keeps its device from
+/// frame to frame.
+pub struct EmbreeLowBuilds {
+    device: Device,
+}
+
+impl EmbreeLowBuilds {
+    /// A device of `threads` build threads.
+    pub fn new(threads: usize) -> Result<Self, String> {
+        let config = embree3::Config {
+            threads: u32::try_from(threads).unwrap_or(u32::MAX),
+            ..embree3::Config::default()
+        };
+        let device = Device::with_config(config).map_err(|e| format!("embree device: {e:?}"))?;
+        Ok(Self { device })
+    }
+
+    /// Seconds a LOW-quality scene over `tris` takes: copying the triangles
+    /// into Embree's buffers and committing the scene.
+    pub fn secs(&self, tris: &[Triangle]) -> Result<f64, String> {
+        let start = std::time::Instant::now();
+        let scene = mesh_scene_with(&self.device, tris, BuildQuality::LOW, SceneFlags::NONE)?;
+        let secs = start.elapsed().as_secs_f64();
+        drop(scene);
+        Ok(secs)
+    }
+}
+
 fn mesh_scene_with(
     device: &Device,
     tris: &[Triangle],
