@@ -64,6 +64,6 @@ pub use packet::traverse::traverse_packet;
 pub use packet::width::avx2;
 pub use packet::width::{MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};
 #[cfg(feature = "embree")]
-pub use peers::embree::{EmbreeLowBuilds, EmbreeMesh, EmbreeTwoLevel, embree_medium_build_secs};
+pub use peers::embree::{EmbreeLowBuilds, EmbreeMesh, EmbreeRefits, EmbreeTwoLevel, embree_medium_build_secs};
 pub use testing::{meshgen, oracle};
 pub use toplevel::bsp::{BspBuilder, InstanceBsp};

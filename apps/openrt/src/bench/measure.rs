@@ -666,6 +666,12 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
     let (mut emb, embree) = (Vec::new(), openrt_accel::EmbreeLowBuilds::new(threads)?);
     #[cfg(not(feature = "embree"))]
     let emb: Vec<f64> = Vec::new();
+    // Embree's refits: its scene made on the first frame (untimed), then
+    // refitted to each frame's triangles.
+    #[cfg(feature = "embree")]
+    let (mut emb_refit, mut embree_refits) = (Vec::new(), None::<openrt_accel::EmbreeRefits>);
+    #[cfg(not(feature = "embree"))]
+    let emb_refit: Vec<f64> = Vec::new();
     let (mut fresh_cost, mut refit_cost, mut refits, mut triangles) = (0.0, 0.0, 0, 0);
     let mut prev: Option<KdTree> = None;
     let (mut bvh_fresh, mut bvh_refit, mut bvh_refits) = (Vec::new(), Vec::new(), 0);
@@ -727,7 +733,13 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
         bvh_refits += usize::from(d.stats().refitted);
         bvh_prev = Some(d);
         #[cfg(feature = "embree")]
-        emb.push(embree.secs(&tris)? * 1e3);
+        {
+            emb.push(embree.secs(&tris)? * 1e3);
+            match &mut embree_refits {
+                Some(r) => emb_refit.push(r.secs(&tris)? * 1e3),
+                None => embree_refits = Some(openrt_accel::EmbreeRefits::new(&tris, threads)?),
+            }
+        }
     }
     let n = fresh.len();
     if n == 0 {
@@ -743,6 +755,7 @@ fn rebuild_figures(name: &str, threads: usize) -> Result<Rebuild, String> {
         fresh_cost: fresh_cost / n as f64,
         refit_cost: refit_cost / n as f64,
         embree_ms: (!emb.is_empty()).then(|| median(emb)),
+        embree_refit_ms: (!emb_refit.is_empty()).then(|| median(emb_refit)),
         bvh_ms: median(bvh_fresh),
         bvh_refit_ms: median(bvh_refit),
         bvh_refits,

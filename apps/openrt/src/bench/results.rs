@@ -114,6 +114,8 @@ pub(super) struct Rebuild {
     pub(super) fresh_cost: f64,
     pub(super) refit_cost: f64,
     pub(super) embree_ms: Option<f64>,
+    /// Embree refitting its own BVH of the triangles (`REFIT` quality).
+    pub(super) embree_refit_ms: Option<f64>,
     /// The BVH: built afresh, refitted (`Bvh::refit`), refitted frames.
     pub(super) bvh_ms: f64,
     pub(super) bvh_refit_ms: f64,

@@ -271,6 +271,31 @@ fn the_lane_test_of_four_children_equals_the_group_and_single_ray_tests() {
     assert!(met > 5_000, "{met} boxes met: the sweep tests too little");
 }
 
+/// A refit on a pool's thread (parallel, from `PARALLEL_MIN` triangles)
+/// and one on another thread (sequential) give the same tree.
+#[test]
+fn refits_in_parallel_and_alone_agree() {
+    let tris = meshgen::bumpy_sphere(3 * crate::kd::fast_build::PARALLEL_MIN, 6, 0.2);
+    let first = Bvh::build(tris.clone()).unwrap();
+    let moved: Vec<Triangle> = tris.iter().map(|t| t.map(|v| v * (1.0 + 0.05 * v.x.cos()))).collect();
+    let alone = Bvh::refit(&first, moved.clone(), BVH_REFIT_COST_LIMIT).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    let pooled = pool
+        .install(|| Bvh::refit(&first, moved, BVH_REFIT_COST_LIMIT))
+        .unwrap();
+    assert!(alone.stats().refitted && pooled.stats().refitted);
+    let bits = |b: &Bvh| {
+        b.nodes()
+            .iter()
+            .flat_map(|n| (0..BVH_WIDTH).map(|i| n.child_box(i)))
+            .flat_map(|a| [a.min, a.max].map(|v| v.to_array().map(f32::to_bits)))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&alone), bits(&pooled));
+    assert_eq!(alone.blocks.len(), pooled.blocks.len());
+    pooled.validate().unwrap();
+}
+
 #[test]
 fn refits_follow_moving_triangles_and_rebuild_when_the_tree_degrades() {
     let tris = meshgen::bumpy_sphere(4000, 3, 0.2);
