@@ -162,8 +162,9 @@ impl EmbreeRefits {
             .map_err(|e| format!("embree vertex buffer: {e:?}"))?;
         write_vertices(&mut vertices, tris);
         let mut scene = device.create_scene().map_err(|e| format!("embree scene: {e:?}"))?;
+        // NOTE: REFIT is a geometry's build quality only (a scene refuses
+        // it: "invalid build quality").
         scene.set_flags(SceneFlags::DYNAMIC);
-        scene.set_build_quality(BuildQuality::REFIT);
         let mut geom = device
             .create_geometry(GeometryKind::TRIANGLE)
             .map_err(|e| format!("embree geometry: {e:?}"))?;
