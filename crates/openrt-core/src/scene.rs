@@ -34,7 +34,11 @@ pub struct SceneHit {
 }
 
 /// Everything shading needs about a hit point, in world space.
+// PERF: 16-byte aligned: a packet's surfaces are copied in 16-byte moves,
+// and unaligned ones stalled on partly overlapping loads and stores
+// (kitchen GL-like frames 0.97-0.98 of the time aligned, with `Facing`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(align(16))]
 pub struct Surface {
     /// Hit point.
     pub point: Vec3,
