@@ -18,7 +18,7 @@ use crate::error::AccelError;
 use crate::geom::aabb::Aabb;
 use crate::geom::triangle::Triangle;
 use crate::geom::triangle::is_valid_triangle;
-use crate::kd::fast_build::PARALLEL_MIN;
+use crate::kd::fast_build::parallel_for;
 
 /// Nodes or blocks per parallel task.
 const CHUNK: usize = 1024;
@@ -35,7 +35,7 @@ impl Bvh {
         // from another thread rayon hands the work to its global pool and
         // waits (museum1k, 1k triangles: 0.103 ms a refit with, 0.023
         // without; bench rebuild table).
-        let parallel = rayon::current_thread_index().is_some() && tris.len() >= PARALLEL_MIN;
+        let parallel = parallel_for(tris.len());
         let same = |(a, b): (&Triangle, &Triangle)| is_valid_triangle(a) == is_valid_triangle(b);
         let same_validity = tris.len() == prev.tris.len()
             && if parallel {

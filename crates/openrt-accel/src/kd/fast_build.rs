@@ -112,13 +112,20 @@ pub(crate) fn items_of(tris: &[Triangle]) -> Result<(Vec<u32>, Boxes, Aabb), Acc
     Ok((ids, boxes, bounds))
 }
 
+/// Whether work over `items` runs in parallel: from [`PARALLEL_MIN`] items,
+/// on a pool's thread only (from any other thread rayon would hand the work
+/// to its global pool and wait).
+pub(crate) fn parallel_for(items: usize) -> bool {
+    items >= PARALLEL_MIN && rayon::current_thread_index().is_some()
+}
+
 /// Levels of a tree built on two threads each: one per doubling of the
 /// threads of the rayon pool the build runs in (the commit lends it its
 /// pool, so no thread is spawned per build). None for fewer than
 /// [`PARALLEL_MIN`] items, and none outside a pool's threads: a build on
 /// any other thread never starts rayon's global pool.
 pub(crate) fn parallel_levels(params: &FastParams, items: usize) -> u32 {
-    if params.parallel && items >= PARALLEL_MIN && rayon::current_thread_index().is_some() {
+    if params.parallel && parallel_for(items) {
         rayon::current_num_threads().next_power_of_two().trailing_zeros()
     } else {
         0
