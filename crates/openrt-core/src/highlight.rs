@@ -126,14 +126,15 @@ pub(crate) fn highlight_power_lanes<F: LaneF32>(x: F, s: F) -> F {
     (p * scale) & normal & positive
 }
 
-/// `log2 x` for `x > 1`, four lanes ([`log2_normal`]'s arithmetic, 1e-8
+/// `log2 x` for `x > 1`, lane by lane ([`log2_normal`]'s arithmetic, 1e-8
 /// relative; above 127 for infinity), and 0 for `x <= 1` and NaN: the
 /// texture level of detail's logarithm, whose result is only used clamped
 /// to `[0, levels - 1]`, so that every `x <= 1` may give 0.
 #[must_use]
-#[inline]
-pub(crate) fn log2_above_one(x: f32x4) -> f32x4 {
-    log2_normal(x) & x.simd_gt(f32x4::ONE)
+#[allow(clippy::inline_always)]
+#[inline(always)]
+pub(crate) fn log2_above_one<F: LaneF32>(x: F) -> F {
+    log2_normal(x) & x.gt(F::splat(1.0))
 }
 
 /// `log2 x` for positive normal `x` (other lanes: any finite value): the

@@ -90,6 +90,57 @@ pub(crate) fn light_sum(
     Vec3::from(color)
 }
 
+/// What the light loop needs of [`LaneF32::LANES`] hits, one hit to a lane
+/// (the fields of [`LitHit`]).
+#[derive(Clone, Copy)]
+pub(crate) struct LitLanes<F> {
+    /// Hit points.
+    pub p: Lanes<F>,
+    /// Geometric normals facing the incoming rays.
+    pub nf: Lanes<F>,
+    /// Shading normals on the side of `nf`.
+    pub ns: Lanes<F>,
+    /// Unit directions to the eye.
+    pub view: Lanes<F>,
+    /// Ambient light and emission.
+    pub base: Lanes<F>,
+    /// Diffuse reflectance, times the texture.
+    pub kd: Lanes<F>,
+    /// Specular reflectance.
+    pub specular: Lanes<F>,
+    /// The highlights' exponents.
+    pub shininess: F,
+    /// The bases at or below which the highlights' powers are exactly zero.
+    pub floor: F,
+    /// The lanes whose material has Phong highlights.
+    pub bright: u32,
+}
+
+impl<F: LaneF32> LitLanes<F> {
+    /// The first [`LaneF32::LANES`] of `hits`, one to a lane.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub fn of(hits: &[LitHit]) -> Self {
+        let hits = &hits[..F::LANES];
+        // NOTE: no closure makes lanes (simd.rs): `transposed` is inlined.
+        Self {
+            p: Lanes::transposed(|i| hits[i].p),
+            nf: Lanes::transposed(|i| hits[i].nf),
+            ns: Lanes::transposed(|i| hits[i].ns),
+            view: Lanes::transposed(|i| hits[i].view),
+            base: Lanes::transposed(|i| hits[i].base),
+            kd: Lanes::transposed(|i| hits[i].kd),
+            specular: Lanes::transposed(|i| hits[i].specular),
+            shininess: F::from_fn(|i| hits[i].shininess),
+            floor: F::from_fn(|i| hits[i].floor),
+            bright: hits
+                .iter()
+                .enumerate()
+                .fold(0, |m, (i, h)| m | (u32::from(h.highlights) << i)),
+        }
+    }
+}
+
 /// [`light_sum`] of up to [`LaneF32::LANES`] hits at once (four with
 /// `f32x4`, eight with the AVX2 type), written to `out[i]` for `hits[i]`
 /// where `lanes` has bit `i` (the other lanes' colours are not written);
@@ -105,22 +156,47 @@ pub(crate) fn light_sum_lanes<F: LaneF32>(
     blocked: impl Fn(usize) -> u32,
     out: &mut [Vec3],
 ) {
-    let hits = &hits[..F::LANES];
-    // NOTE: no closure makes lanes (simd.rs): `transposed` is inlined.
-    let (p, nf) = (Lanes::<F>::transposed(|i| hits[i].p), Lanes::transposed(|i| hits[i].nf));
-    let (ns, view) = (Lanes::transposed(|i| hits[i].ns), Lanes::transposed(|i| hits[i].view));
-    let (kd, specular) = (
-        Lanes::<F>::transposed(|i| hits[i].kd),
-        Lanes::<F>::transposed(|i| hits[i].specular),
-    );
-    let mut color = Lanes::<F>::transposed(|i| hits[i].base);
-    let shininess = F::from_fn(|i| hits[i].shininess);
-    let floor = F::from_fn(|i| hits[i].floor);
-    let bright = hits
-        .iter()
-        .enumerate()
-        .fold(0, |m, (i, h)| m | (u32::from(h.highlights) << i))
-        & lanes;
+    let color = light_sum_of_lanes(lights, &LitLanes::<F>::of(hits), lanes, blocked);
+    write_colors(&color, lanes, out);
+}
+
+/// `out[i]` of the lanes `i` of `color` that `lanes` has.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+pub(crate) fn write_colors<F: LaneF32>(color: &Lanes<F>, lanes: u32, out: &mut [Vec3]) {
+    let mut xyz = [[0.0; MAX_LANES]; 3];
+    color.x.write_to(&mut xyz[0]);
+    color.y.write_to(&mut xyz[1]);
+    color.z.write_to(&mut xyz[2]);
+    for i in lanes_of(lanes) {
+        out[i] = Vec3::new(xyz[0][i], xyz[1][i], xyz[2][i]);
+    }
+}
+
+/// [`light_sum_lanes`] of hits already in lanes: their colours, one to a
+/// lane (the lanes outside `lanes` hold any value).
+#[allow(clippy::inline_always)]
+#[inline(always)]
+pub(crate) fn light_sum_of_lanes<F: LaneF32>(
+    lights: &[PointLight],
+    hits: &LitLanes<F>,
+    lanes: u32,
+    blocked: impl Fn(usize) -> u32,
+) -> Lanes<F> {
+    let LitLanes {
+        p,
+        nf,
+        ns,
+        view,
+        base,
+        kd,
+        specular,
+        shininess,
+        floor,
+        bright,
+    } = *hits;
+    let mut color = base;
+    let bright = bright & lanes;
     let bright_mask = F::mask(bright);
     for (j, light) in lights.iter().enumerate() {
         let (ok, ndl, rdv) = terms(&Lanes::splat(light.position), &p, &nf, &ns, &view);
@@ -160,13 +236,7 @@ pub(crate) fn light_sum_lanes<F: LaneF32>(
         };
         color = Lanes::select(m, &sum, &color);
     }
-    let mut xyz = [[0.0; MAX_LANES]; 3];
-    color.x.write_to(&mut xyz[0]);
-    color.y.write_to(&mut xyz[1]);
-    color.z.write_to(&mut xyz[2]);
-    for i in lanes_of(lanes) {
-        out[i] = Vec3::new(xyz[0][i], xyz[1][i], xyz[2][i]);
-    }
+    color
 }
 
 #[cfg(test)]

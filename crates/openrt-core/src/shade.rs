@@ -1,17 +1,18 @@
 //! Whitted ray tracing and the "OpenGL-like" local shading mode.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 use openrt_accel::{Ray, lanes_mask, lanes_of, rays_from_lanes, sign_groups};
 use wide::f32x4;
 
 use crate::highlight::{highlight_powers, log2_above_one};
-use crate::light_loop::{LitHit, light_sum, light_sum_lanes};
+use crate::light_loop::{LitHit, LitLanes, light_sum, light_sum_lanes, light_sum_of_lanes, write_colors};
 use crate::light_quad::{Lanes, LightQuad, light_terms, towards};
 use crate::occluder_hint::OccluderHint;
 use crate::phases::{Phase, PhaseClock};
 use crate::simd::LaneF32;
 use crate::surface_lanes::Facing;
 use crate::surface_lanes::MAX_SURFACE_LANES;
+use crate::surface_lanes::{SurfaceLanes, dot as dot_lanes};
 use crate::tracer::Tracer;
 use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
@@ -785,6 +786,10 @@ impl<T: Tracer> Shader<'_, T> {
         let t = PhaseClock::start::<ON>();
         let hits = self.tracer.intersect_packet(rays, lanes);
         let t = self.clock.stop::<ON>(t, query_phase(depth));
+        if self.mode != RenderMode::Whitted {
+            self.shade_local_lanes::<N, ON, F>(packet, &hits, block, t);
+            return;
+        }
         // PERF: filled in place (`from_fn` moved each lane's result twice).
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
         self.prepare_lanes::<N, F>(rays, cones, &hits, lanes, &mut preps);
@@ -867,6 +872,233 @@ impl<T: Tracer> Shader<'_, T> {
             }
         }
         self.clock.stop::<ON>(t, Phase::Lights);
+    }
+
+    /// [`Shader::shade_block_as`] of GL-like frames, whose hits are shaded
+    /// by their material and the lights alone (no shadow or bounce rays),
+    /// kept in lanes from the surfaces to the colours: the surfaces of
+    /// `F::LANES` hits at a time ([`Scene::surface_lanes`]), their texels,
+    /// the light loop on them ([`light_sum_of_lanes`]). Each lane's colour is
+    /// the bytes of [`Shader::trace`]: the same operations as
+    /// [`Shader::prepare`], [`Shader::texel`] and [`Shader::lit_hit`],
+    /// without their per-lane structs. Lanes that pass through a one-sided
+    /// surface or have an emission texture are shaded one by one.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn shade_local_lanes<const N: usize, const ON: bool, F: LaneF32>(
+        &mut self,
+        packet: &BlockIn<'_, N>,
+        hits: &[Option<SceneHit>; N],
+        block: &mut ShadedBlock<N>,
+        t: Option<quanta::Instant>,
+    ) {
+        const M: usize = MAX_SURFACE_LANES;
+        let &BlockIn { rays, cones, lanes, .. } = packet;
+        let scene = self.scene;
+        let w = F::LANES;
+        debug_assert_eq!(N % w, 0, "{w} lanes do not divide a packet of {N}");
+        block.lanes = lanes;
+        // Surfaces: each chunk's lanes, their cones' widths, and the lanes
+        // left to the one-by-one path.
+        let mut chunks: [Option<(SurfaceLanes<'_, F>, F)>; 4] = [None; 4];
+        let mut alone = 0u32;
+        let mut have = 0u32;
+        for c in 0..N / w {
+            let bits = (lanes >> (w * c)) & lanes_mask(w);
+            if bits == 0 {
+                continue;
+            }
+            let some: [&Ray; M] = std::array::from_fn(|i| &rays[(w * c + i) % N]);
+            let their: [Option<&SceneHit>; M] =
+                std::array::from_fn(|i| hits[(w * c + i) % N].as_ref().filter(|_| i < w && bits & (1 << i) != 0));
+            let Some(surf) = scene.surface_lanes::<F>(&some, &their) else {
+                continue;
+            };
+            let dirs = Lanes::<F>::transposed(|i| some[i].dir.into());
+            let behind = dot_lanes(&surf.geometric, &dirs).gt(F::splat(0.0)).bitmask();
+            let mut found = 0u32;
+            for (i, f) in surf.found.iter().enumerate().take(w) {
+                let Some((_, _, material)) = f else {
+                    continue;
+                };
+                let mat = &scene.materials()[material.index() as usize];
+                if (mat.one_sided && behind & (1 << i) != 0) || mat.emission_texture.is_some() {
+                    alone |= 1 << (w * c + i);
+                } else {
+                    found |= 1 << i;
+                }
+            }
+            // `Cone::width_for` lane by lane.
+            let cone = |i: usize| cones[(w * c + i) % N];
+            let t_hit = F::from_fn(|i| surf.found[i].map_or(0.0, |f| f.0.t));
+            let width = F::from_fn(|i| cone(i).width) + F::from_fn(|i| cone(i).spread) * t_hit * surf.facing.len;
+            have |= found << (w * c);
+            chunks[c] = Some((surf, width));
+        }
+        let t = self.clock.stop::<ON>(t, Phase::Surface);
+        // Texels and material terms.
+        let mut lit: [Option<LitLanes<F>>; 4] = [None; 4];
+        for (c, chunk) in chunks.iter().enumerate() {
+            let Some((surf, width)) = chunk else {
+                continue;
+            };
+            let bits = (have >> (w * c)) & lanes_mask(w);
+            if bits == 0 {
+                continue;
+            }
+            lit[c] = Some(self.lit_lanes(surf, *width, bits));
+        }
+        let t = self.clock.stop::<ON>(t, Phase::Textures);
+        for (c, (chunk, lit)) in chunks.iter().zip(&lit).enumerate() {
+            let bits = (have >> (w * c)) & lanes_mask(w);
+            let (Some((_, width)), Some(lit)) = (chunk, lit) else {
+                continue;
+            };
+            let color = light_sum_of_lanes(&self.env.lights, lit, bits, |_| 0);
+            write_colors(&color, bits, &mut block.color[w * c..]);
+            let mut widths = [0.0; M];
+            width.write_to(&mut widths);
+            for i in lanes_of(bits) {
+                block.cones[w * c + i] = Cone {
+                    width: widths[i],
+                    spread: cones[w * c + i].spread,
+                };
+            }
+        }
+        for l in lanes_of(lanes & !have & !alone) {
+            block.color[l] = self.env.background;
+        }
+        for l in lanes_of(lanes) {
+            block.bounces[l] = [None; 2];
+        }
+        let t = self.clock.stop::<ON>(t, Phase::Lights);
+        if alone != 0 {
+            self.shade_local_alone(rays, cones, hits, alone, block);
+            self.clock.stop::<ON>(t, Phase::Surface);
+        }
+    }
+
+    /// What the light loop needs of the `lanes` of a chunk of surfaces whose
+    /// cones are `width` wide: [`Shader::texel`] and [`Shader::lit_hit`] of
+    /// each lane, in lanes (the same bits).
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn lit_lanes<F: LaneF32>(&self, surf: &SurfaceLanes<'_, F>, width: F, lanes: u32) -> LitLanes<F> {
+        const M: usize = MAX_SURFACE_LANES;
+        let scene = self.scene;
+        let mat = |i: usize| surf.found[i].map(|(_, _, m)| &scene.materials()[m.index() as usize]);
+        let tex_of = |i: usize| mat(i)?.texture.and_then(|t| scene.textures().get(t.index() as usize));
+        let mut texels = [Vec3A::ONE; M];
+        let tex_lanes = lanes_of(lanes).fold(0u32, |m, i| m | (u32::from(tex_of(i).is_some()) << i));
+        if tex_lanes != 0 {
+            let (mut uvx, mut uvy) = ([0.0; M], [0.0; M]);
+            surf.uv[0].write_to(&mut uvx);
+            surf.uv[1].write_to(&mut uvy);
+            let uv = |i: usize| Vec2::new(uvx[i], uvy[i]);
+            let trilinear = self.filter == TextureFilter::Trilinear;
+            // `lods` lane by lane: the texture's texels over the
+            // triangle's, from the cone's width and the slant.
+            let mut lod = [0.0; M];
+            if trilinear {
+                let size = F::from_fn(|i| tex_of(i).map_or(1.0, |t| (t.width() * t.height()) as f32));
+                let texel_area = surf.uv_area * size;
+                let cos = dot_lanes(&surf.facing.d, &surf.facing.nf);
+                let x = texel_area * width * width / (surf.world_area * cos * cos);
+                (F::splat(0.5) * log2_above_one(x)).write_to(&mut lod);
+            }
+            for q in 0..F::LANES / 4 {
+                let mut four: [Option<&crate::Texture>; 4] = [None; 4];
+                for (k, slot) in four.iter_mut().enumerate() {
+                    let i = 4 * q + k;
+                    let Some(t) = tex_of(i).filter(|_| tex_lanes & (1 << i) != 0) else {
+                        continue;
+                    };
+                    if trilinear && crate::texture::takes_lanes(t, uv(i)) {
+                        *slot = Some(t);
+                    } else {
+                        texels[i] = t
+                            .sample_filtered(uv(i), if trilinear { lod[i] } else { 0.0 }, self.filter)
+                            .into();
+                    }
+                }
+                // Lanes without a lookup repeat the first one's (not kept).
+                let Some(k0) = four.iter().position(Option::is_some) else {
+                    continue;
+                };
+                let at = |k: usize| if four[k].is_some() { 4 * q + k } else { 4 * q + k0 };
+                let texs = std::array::from_fn(|k| four[k].or(four[k0]).unwrap_or_else(|| unreachable!()));
+                let got = crate::texture::trilinear_lanes(
+                    texs,
+                    std::array::from_fn(|k| uv(at(k))),
+                    wide::f32x4::from(std::array::from_fn::<f32, 4, _>(|k| lod[at(k)])),
+                );
+                for (k, x) in four.iter().enumerate() {
+                    if x.is_some() {
+                        texels[4 * q + k] = got[k].into();
+                    }
+                }
+            }
+        }
+        // `lit_hit`'s material terms, lane by lane.
+        let ambient = Vec3A::from(self.env.ambient);
+        let (mut base, mut kd, mut specular) = ([Vec3A::ZERO; M], [Vec3A::ZERO; M], [Vec3A::ZERO; M]);
+        let (mut shininess, mut floor) = ([0.0; M], [0.0; M]);
+        let mut bright = 0u32;
+        for i in lanes_of(lanes) {
+            let Some((_, _, m)) = surf.found[i] else {
+                continue;
+            };
+            let index = m.index() as usize;
+            let mat = &scene.materials()[index];
+            let tex = texels[i];
+            base[i] = ambient * (Vec3A::from(mat.ambient) * tex) + Vec3A::from(mat.emission);
+            kd[i] = Vec3A::from(mat.diffuse) * tex;
+            specular[i] = mat.specular.into();
+            shininess[i] = mat.shininess;
+            floor[i] = self.zero_power.get(index).copied().unwrap_or(0.0);
+            bright |= u32::from(mat.shininess > 0.0 && mat.specular != Vec3::ZERO) << i;
+        }
+        let all = F::mask(lanes_mask(F::LANES));
+        LitLanes {
+            p: surf.point,
+            nf: surf.facing.nf,
+            ns: surf.facing.ns,
+            view: Lanes {
+                x: surf.facing.d.x.flip_sign(all),
+                y: surf.facing.d.y.flip_sign(all),
+                z: surf.facing.d.z.flip_sign(all),
+            },
+            base: Lanes::transposed(|i| base[i]),
+            kd: Lanes::transposed(|i| kd[i]),
+            specular: Lanes::transposed(|i| specular[i]),
+            shininess: F::from_fn(|i| shininess[i]),
+            floor: F::from_fn(|i| floor[i]),
+            bright,
+        }
+    }
+
+    /// The GL-like colours of the `lanes` of a packet that
+    /// [`Shader::shade_local_lanes`] leaves out, one lane at a time through
+    /// [`Shader::prepare`], [`Shader::texel`] and [`light_sum`].
+    #[cold]
+    #[inline(never)]
+    fn shade_local_alone<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        cones: &[Cone; N],
+        hits: &[Option<SceneHit>; N],
+        lanes: u32,
+        block: &mut ShadedBlock<N>,
+    ) {
+        for l in lanes_of(lanes) {
+            if let Some(p) = self.prepare(&rays[l], cones[l], hits[l].as_ref()) {
+                let hit = self.lit_hit(&p, self.texel(&p));
+                block.color[l] = light_sum(&self.env.lights, &self.light_quads, &hit, |_| false);
+                block.cones[l] = p.cone;
+            } else {
+                block.color[l] = self.env.background;
+            }
+        }
     }
 
     /// The bounces of shaded `blocks` ([`Shader::shade_block`], a tile's):

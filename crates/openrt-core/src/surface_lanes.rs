@@ -14,9 +14,10 @@
 use glam::{Mat3, Vec2, Vec3, Vec3A};
 use openrt_accel::Ray;
 
+use crate::instance::InstanceRecord;
 use crate::light_quad::Lanes;
 use crate::simd::LaneF32;
-use crate::{Scene, SceneHit, Surface};
+use crate::{MaterialId, Scene, SceneHit, Surface};
 
 /// The most lanes [`Scene::own_surfaces`] takes at once.
 pub(crate) const MAX_SURFACE_LANES: usize = 8;
@@ -69,9 +70,10 @@ fn cross<F: LaneF32>(a: &Lanes<F>, r: &Lanes<F>) -> Lanes<F> {
     }
 }
 
+/// `a·b` lane by lane: `(x * x' + y * y') + z * z'`, glam's order.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-fn dot<F: LaneF32>(a: &Lanes<F>, b: &Lanes<F>) -> F {
+pub(crate) fn dot<F: LaneF32>(a: &Lanes<F>, b: &Lanes<F>) -> F {
     a.x * b.x + a.y * b.y + a.z * b.z
 }
 
@@ -201,12 +203,27 @@ fn uv_lanes<F: LaneF32>(uvs: &[[Vec2; MAX_SURFACE_LANES]; 3], k: usize, a: fn(Ve
     F::from_fn(|i| a(uvs[k][i]))
 }
 
+/// [`Facing::of`] of a packet's lanes, one vector coordinate to a register.
+#[derive(Clone, Copy)]
+pub(crate) struct FacingLanes<F> {
+    /// `ray.dir.normalize()`.
+    pub d: Lanes<F>,
+    /// `ray.dir.length()`.
+    pub len: F,
+    /// Set in the lanes whose ray arrives at the back of the geometric normal.
+    pub back: F,
+    /// Geometric normals facing the incoming rays.
+    pub nf: Lanes<F>,
+    /// Shading normals on the side of `nf`.
+    pub ns: Lanes<F>,
+}
+
 /// [`Facing::of`] lane by lane: directions `dir`, geometric normals `g`
 /// and shading normals `s` (the same operations: `normalize` is
 /// `dir * (1 / sqrt(dir·dir))`, negation a flip of the sign bit).
 #[allow(clippy::inline_always)]
 #[inline(always)]
-fn facing_lanes<F: LaneF32>(dir: &Lanes<F>, g: &Lanes<F>, s: &Lanes<F>) -> [Facing; MAX_SURFACE_LANES] {
+fn facing_lanes<F: LaneF32>(dir: &Lanes<F>, g: &Lanes<F>, s: &Lanes<F>) -> FacingLanes<F> {
     let len = dot(dir, dir).sqrt();
     let rcp = F::splat(1.0) / len;
     let d = Lanes {
@@ -217,12 +234,19 @@ fn facing_lanes<F: LaneF32>(dir: &Lanes<F>, g: &Lanes<F>, s: &Lanes<F>) -> [Faci
     let back = dot(g, &d).gt(F::splat(0.0));
     let nf = flip(g, back);
     let ns = flip(s, dot(s, &nf).lt(F::splat(0.0)));
+    FacingLanes { d, len, back, nf, ns }
+}
+
+/// Each lane's [`Facing`] of `f`, `out[i]` for lane `i`.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn facings<F: LaneF32>(f: &FacingLanes<F>) -> [Facing; MAX_SURFACE_LANES] {
     let (d, nf, ns, len, back) = (
-        vectors(&d),
-        vectors(&nf),
-        vectors(&ns),
-        lane_values(len),
-        back.bitmask(),
+        vectors(&f.d),
+        vectors(&f.nf),
+        vectors(&f.ns),
+        lane_values(f.len),
+        f.back.bitmask(),
     );
     std::array::from_fn(|i| Facing {
         d: d[i],
@@ -231,6 +255,35 @@ fn facing_lanes<F: LaneF32>(dir: &Lanes<F>, g: &Lanes<F>, s: &Lanes<F>) -> [Faci
         nf: nf[i],
         ns: ns[i],
     })
+}
+
+/// A lane's hit, its instance and the hit triangle's material.
+pub(crate) type FoundLane<'s> = (&'s SceneHit, &'s InstanceRecord, MaterialId);
+
+/// [`Scene::own_surface`] of up to [`MAX_SURFACE_LANES`] hits, one
+/// coordinate to a register ([`Scene::surface_lanes`]), and how each ray
+/// meets its surface.
+#[derive(Clone, Copy)]
+pub(crate) struct SurfaceLanes<'s, F> {
+    /// Each lane's hit, instance and material; `None` where the lane has
+    /// no surface of this scene.
+    pub found: [Option<FoundLane<'s>>; MAX_SURFACE_LANES],
+    /// Hit points.
+    pub point: Lanes<F>,
+    /// [`Surface::error_scale`].
+    pub error_scale: F,
+    /// Unit geometric normals.
+    pub geometric: Lanes<F>,
+    /// Unit shading normals.
+    pub shading: Lanes<F>,
+    /// Texture coordinates.
+    pub uv: [F; 2],
+    /// [`Surface::uv_area`].
+    pub uv_area: F,
+    /// [`Surface::world_area`].
+    pub world_area: F,
+    /// How the rays meet the surfaces ([`Facing`]).
+    pub facing: FacingLanes<F>,
 }
 
 impl Scene {
@@ -246,6 +299,55 @@ impl Scene {
         hits: &[Option<&SceneHit>],
         mut emit: impl FnMut(usize, Surface, &Facing),
     ) {
+        let Some(lanes) = self.surface_lanes::<F>(rays, hits) else {
+            return;
+        };
+        let facing = facings(&lanes.facing);
+        let (geometric, shading, point) = (
+            vectors(&lanes.geometric),
+            vectors(&lanes.shading),
+            vectors(&lanes.point),
+        );
+        let (error_scale, uv_area, world_area) = (
+            lane_values(lanes.error_scale),
+            lane_values(lanes.uv_area),
+            lane_values(lanes.world_area),
+        );
+        let (uvx, uvy) = (lane_values(lanes.uv[0]), lane_values(lanes.uv[1]));
+        for i in 0..F::LANES {
+            let Some((_, inst, material)) = lanes.found[i] else {
+                continue;
+            };
+            emit(
+                i,
+                Surface {
+                    point: point[i],
+                    error_scale: error_scale[i],
+                    geometric_normal: geometric[i],
+                    shading_normal: shading[i],
+                    uv: Vec2::new(uvx[i], uvy[i]),
+                    uv_area: uv_area[i],
+                    world_area: world_area[i],
+                    material,
+                    instance: inst.id,
+                    object: inst.object,
+                },
+                &facing[i],
+            );
+        }
+    }
+
+    /// [`Scene::own_surfaces`] kept in lanes: the surfaces of the hits of
+    /// `F::LANES` rays, one coordinate to a register, each lane the bits of
+    /// [`Scene::own_surface`] and [`Facing::of`]; `None` when no lane's hit
+    /// is this scene's.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub(crate) fn surface_lanes<'s, F: LaneF32>(
+        &'s self,
+        rays: &[&Ray],
+        hits: &[Option<&'s SceneHit>],
+    ) -> Option<SurfaceLanes<'s, F>> {
         const M: usize = MAX_SURFACE_LANES;
         let n = F::LANES;
         let mut found = [None; M];
@@ -276,9 +378,7 @@ impl Scene {
             (b1[i], b2[i]) = (hit.b1, hit.b2);
             found[i] = Some((hit, inst, sh.materials[p]));
         }
-        let Some(first) = found.iter().flatten().next().map(|f| f.1) else {
-            return;
-        };
+        let first = found.iter().flatten().next().map(|f| f.1)?;
         let (b1, b2) = (F::from_fn(|i| b1[i]), F::from_fn(|i| b2[i]));
         let b = [F::splat(1.0) - b1 - b2, b1, b2];
         // NOTE: no closure makes lanes (simd.rs).
@@ -335,6 +435,15 @@ impl Scene {
         let point = interpolate(&w, &b);
         let inf = F::splat(f32::INFINITY);
         let finite = (point.x.abs().lt(inf) & point.y.abs().lt(inf) & point.z.abs().lt(inf)).bitmask();
+        let present = (0..n).fold(0u32, |m, i| m | (u32::from(found[i].is_some()) << i));
+        // A lane whose interpolated point is not finite takes the ray's
+        // point at the hit's distance instead.
+        let point = if finite & present == present {
+            point
+        } else {
+            let at = Lanes::transposed(|i| found[i].map_or(Vec3A::ZERO, |f| rays[i].at(f.0.t).into()));
+            Lanes::select(F::mask(finite), &point, &at)
+        };
         // The fold over the three vertices, written out.
         let error_scale = abs_max_element(&w[2])
             .max_fast(abs_max_element(&w[1]).max_fast(abs_max_element(&w[0]).max_fast(F::splat(0.0))));
@@ -346,40 +455,24 @@ impl Scene {
             u(2, |v| v.x) - ux,
             u(2, |v| v.y) - uy,
         );
-        let uv_area = lane_values((ax * cy - ay * cx).abs());
+        let uv_area = (ax * cy - ay * cx).abs();
         let e = cross(&sub(&w[1], &w[0]), &sub(&w[2], &w[0]));
-        let world_area = lane_values(dot(&e, &e).sqrt());
-        let uvx = lane_values(ux * b[0] + u(1, |v| v.x) * b[1] + u(2, |v| v.x) * b[2]);
-        let uvy = lane_values(uy * b[0] + u(1, |v| v.y) * b[1] + u(2, |v| v.y) * b[2]);
+        let world_area = dot(&e, &e).sqrt();
+        let uvx = ux * b[0] + u(1, |v| v.x) * b[1] + u(2, |v| v.x) * b[2];
+        let uvy = uy * b[0] + u(1, |v| v.y) * b[1] + u(2, |v| v.y) * b[2];
         let dirs = Lanes::transposed(|i| rays[i].dir.into());
         let facing = facing_lanes(&dirs, &geometric, &shading);
-        let (geometric, shading, point) = (vectors(&geometric), vectors(&shading), vectors(&point));
-        let error_scale = lane_values(error_scale);
-        for i in 0..n {
-            let Some((hit, inst, material)) = found[i] else {
-                continue;
-            };
-            emit(
-                i,
-                Surface {
-                    point: if finite & (1 << i) != 0 {
-                        point[i]
-                    } else {
-                        rays[i].at(hit.t)
-                    },
-                    error_scale: error_scale[i],
-                    geometric_normal: geometric[i],
-                    shading_normal: shading[i],
-                    uv: Vec2::new(uvx[i], uvy[i]),
-                    uv_area: uv_area[i],
-                    world_area: world_area[i],
-                    material,
-                    instance: inst.id,
-                    object: inst.object,
-                },
-                &facing[i],
-            );
-        }
+        Some(SurfaceLanes {
+            found,
+            point,
+            error_scale,
+            geometric,
+            shading,
+            uv: [uvx, uvy],
+            uv_area,
+            world_area,
+            facing,
+        })
     }
 }
 

@@ -589,3 +589,180 @@ fn emission_is_added_unlit_and_the_same_on_every_path() {
     });
     assert!(bad.is_err(), "{bad:?}");
 }
+
+/// GL-like packets keep their hits in lanes from the surfaces to the
+/// colours; every lane must still be the single-ray path's bytes, whatever
+/// a packet mixes: materials with and without highlights, textures with
+/// repeat and clamp addressing (and none), an emission texture and a
+/// one-sided card seen from behind (both shaded one lane at a time),
+/// mirrored and rotated instances, background lanes and an image whose
+/// size no block divides; every texture filter and packet width.
+#[test]
+fn gl_like_packets_give_the_single_ray_bytes_on_mixed_lanes() {
+    use glam::{Quat, Vec2};
+    use openrt_accel::PacketWidth;
+    use openrt_core::{Backend, PrimitiveKind, Texture, TextureFilter, TextureWrap};
+    let mut ctx = Context::new();
+    let checker = |n: usize| {
+        let texels = (0..n * n)
+            .map(|i| {
+                let (x, y) = (i % n, i / n);
+                Vec3::new(
+                    (x as f32 + 1.0) / n as f32,
+                    (y as f32 + 1.0) / n as f32,
+                    ((x + y) % 2) as f32,
+                )
+            })
+            .collect();
+        Texture::new(n, n, texels).unwrap()
+    };
+    let repeat = ctx.create_texture(checker(64));
+    let clamp = ctx.create_texture(checker(16).with_wrap(TextureWrap::ClampToEdge, TextureWrap::MirroredRepeat));
+    let glow = ctx.create_texture(checker(8));
+    let materials = [
+        Material {
+            diffuse: Vec3::new(0.8, 0.7, 0.6),
+            specular: Vec3::splat(0.4),
+            shininess: 30.0,
+            texture: Some(repeat),
+            ..Material::default()
+        },
+        Material {
+            diffuse: Vec3::new(0.2, 0.6, 0.9),
+            texture: Some(clamp),
+            ..Material::default()
+        },
+        Material {
+            diffuse: Vec3::splat(0.3),
+            emission: Vec3::new(0.4, 0.2, 0.1),
+            emission_texture: Some(glow),
+            ..Material::default()
+        },
+        Material {
+            diffuse: Vec3::new(0.9, 0.2, 0.2),
+            specular: Vec3::splat(0.7),
+            shininess: 200.0,
+            ..Material::default()
+        },
+        Material {
+            diffuse: Vec3::new(0.1, 0.9, 0.1),
+            one_sided: true,
+            ..Material::default()
+        },
+    ]
+    .map(|m| ctx.create_material(m).unwrap());
+    // A sphere whose triangles take the materials in turn, with normals and
+    // texture coordinates from their positions.
+    let sphere = ctx.gen_object();
+    ctx.begin_object(sphere).unwrap();
+    ctx.begin(PrimitiveKind::Triangles).unwrap();
+    for (k, t) in meshgen::bumpy_sphere(600, 7, 0.1).iter().enumerate() {
+        ctx.material(materials[k % 4]).unwrap();
+        for &v in t {
+            ctx.normal(v.normalize_or_zero()).unwrap();
+            ctx.tex_coord(Vec2::new(v.x * 3.0 + 0.5, v.y * 2.0 - v.z)).unwrap();
+            ctx.vertex(v).unwrap();
+        }
+    }
+    ctx.end().unwrap();
+    ctx.end_object().unwrap();
+    // A one-sided card facing away from the camera, and a textured wall.
+    let card = object(
+        &mut ctx,
+        &quad(
+            Vec3::new(-0.5, -0.5, 0.0),
+            Vec3::new(-0.5, 0.5, 0.0),
+            Vec3::new(0.5, 0.5, 0.0),
+            Vec3::new(0.5, -0.5, 0.0),
+        ),
+        materials[4],
+    );
+    let wall = ctx.gen_object();
+    ctx.begin_object(wall).unwrap();
+    ctx.material(materials[0]).unwrap();
+    ctx.begin(PrimitiveKind::Triangles).unwrap();
+    for t in quad(
+        Vec3::new(-3.0, -2.0, -2.0),
+        Vec3::new(3.0, -2.0, -2.0),
+        Vec3::new(3.0, 2.0, -2.0),
+        Vec3::new(-3.0, 2.0, -2.0),
+    ) {
+        for v in t {
+            ctx.tex_coord(Vec2::new(v.x * 0.7, v.y * 0.9)).unwrap();
+            ctx.vertex(v).unwrap();
+        }
+    }
+    ctx.end().unwrap();
+    ctx.end_object().unwrap();
+    ctx.instantiate(wall).unwrap();
+    for (i, m) in [
+        Mat4::from_translation(Vec3::new(-1.2, 0.0, 0.0)),
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(-0.8, 0.8, 0.8),
+            Quat::from_rotation_y(0.7),
+            Vec3::new(1.1, 0.3, -0.2),
+        ),
+        Mat4::from_translation(Vec3::new(0.2, -0.9, 1.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        ctx.load_matrix(m).unwrap();
+        ctx.instantiate(if i == 2 { card } else { sphere }).unwrap();
+    }
+    ctx.commit().unwrap();
+    let scene = ctx.scene();
+    let cam = Camera {
+        from: Vec3::new(0.3, 0.2, 4.0),
+        at: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 70.0,
+        near: 0.0,
+    };
+    let env = Environment {
+        lights: vec![
+            PointLight {
+                position: Vec3::new(2.0, 3.0, 3.0),
+                color: Vec3::new(0.8, 0.8, 0.7),
+            },
+            PointLight {
+                position: Vec3::new(-3.0, 1.0, 2.0),
+                color: Vec3::new(0.3, 0.3, 0.5),
+            },
+            PointLight {
+                position: Vec3::new(0.0, -1.0, -1.0),
+                color: Vec3::splat(0.4),
+            },
+        ],
+        ambient: Vec3::splat(0.15),
+        background: Vec3::new(0.05, 0.1, 0.2),
+    };
+    for filter in TextureFilter::ALL {
+        let image = |backend: Backend, width: PacketWidth| {
+            let mut r = Renderer::new(1).unwrap();
+            r.set_backend(backend);
+            r.set_packet_width(width);
+            let s = RenderSettings {
+                width: 45,
+                height: 37,
+                mode: RenderMode::GlLike,
+                texture_filter: filter,
+                ..RenderSettings::default()
+            };
+            r.render(&scene, &env, &cam, &s).unwrap().0.to_rgb8()
+        };
+        let want = image(Backend::KdSingle, PacketWidth::W4);
+        let distinct: std::collections::HashSet<&[u8]> = want.chunks(3).collect();
+        assert!(
+            distinct.len() > 200,
+            "{filter:?}: a varied image, {} colours",
+            distinct.len()
+        );
+        for width in [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16] {
+            assert!(
+                image(Backend::Kd, width) == want,
+                "{filter:?}, {width:?}: packets differ from single rays"
+            );
+        }
+    }
+}
