@@ -941,7 +941,7 @@ impl<T: Tracer> Shader<'_, T> {
                 continue;
             }
             // Texels and material terms, then the light loop.
-            let lit = self.lit_lanes(&surf, width, found);
+            let lit = self.lit_lanes(&surf, surf.points(&some), width, found);
             t = self.clock.stop::<ON>(t, Phase::Textures);
             let color = light_sum_of_lanes(&self.env.lights, &lit, found, |_| 0);
             write_colors(&color, found, &mut block.color[w * c..]);
@@ -967,12 +967,12 @@ impl<T: Tracer> Shader<'_, T> {
         }
     }
 
-    /// What the light loop needs of the `lanes` of a chunk of surfaces whose
-    /// cones are `width` wide: [`Shader::texel`] and [`Shader::lit_hit`] of
+    /// What the light loop needs of the `lanes` of a chunk of surfaces at
+    /// points `p` ([`SurfaceLanes::points`]) whose cones are `width` wide: [`Shader::texel`] and [`Shader::lit_hit`] of
     /// each lane, in lanes (the same bits).
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    fn lit_lanes<F: LaneF32>(&self, surf: &SurfaceLanes<'_, F>, width: F, lanes: u32) -> LitLanes<F> {
+    fn lit_lanes<F: LaneF32>(&self, surf: &SurfaceLanes<'_, F>, p: Lanes<F>, width: F, lanes: u32) -> LitLanes<F> {
         const M: usize = MAX_SURFACE_LANES;
         let scene = self.scene;
         let mat = |i: usize| surf.found[i].map(|(_, _, m)| &scene.materials()[m.index() as usize]);
@@ -1049,7 +1049,7 @@ impl<T: Tracer> Shader<'_, T> {
         }
         let all = F::mask(lanes_mask(F::LANES));
         LitLanes {
-            p: surf.point,
+            p,
             nf: surf.facing.nf,
             ns: surf.facing.ns,
             view: Lanes {

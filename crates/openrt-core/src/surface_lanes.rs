@@ -268,8 +268,11 @@ pub(crate) struct SurfaceLanes<'s, F> {
     /// Each lane's hit, instance and material; `None` where the lane has
     /// no surface of this scene.
     pub found: [Option<FoundLane<'s>>; MAX_SURFACE_LANES],
-    /// Hit points.
+    /// Hit points where they are finite ([`SurfaceLanes::points`]).
     pub point: Lanes<F>,
+    /// The lanes whose `point` is finite; the others take the ray's point
+    /// at the hit's distance.
+    pub finite: u32,
     /// [`Surface::error_scale`].
     pub error_scale: F,
     /// Unit geometric normals.
@@ -284,6 +287,22 @@ pub(crate) struct SurfaceLanes<'s, F> {
     pub world_area: F,
     /// How the rays meet the surfaces ([`Facing`]).
     pub facing: FacingLanes<F>,
+}
+
+impl<F: LaneF32> SurfaceLanes<'_, F> {
+    /// The hit points, each lane's [`Surface::point`]: the interpolated
+    /// point, or where it is not finite the ray's point at the hit's
+    /// distance.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub fn points(&self, rays: &[&Ray]) -> Lanes<F> {
+        let present = (0..F::LANES).fold(0u32, |m, i| m | (u32::from(self.found[i].is_some()) << i));
+        if self.finite & present == present {
+            return self.point;
+        }
+        let at = Lanes::transposed(|i| self.found[i].map_or(Vec3A::ZERO, |f| rays[i].at(f.0.t).into()));
+        Lanes::select(F::mask(self.finite), &self.point, &at)
+    }
 }
 
 impl Scene {
@@ -315,13 +334,17 @@ impl Scene {
         );
         let (uvx, uvy) = (lane_values(lanes.uv[0]), lane_values(lanes.uv[1]));
         for i in 0..F::LANES {
-            let Some((_, inst, material)) = lanes.found[i] else {
+            let Some((hit, inst, material)) = lanes.found[i] else {
                 continue;
             };
             emit(
                 i,
                 Surface {
-                    point: point[i],
+                    point: if lanes.finite & (1 << i) != 0 {
+                        point[i]
+                    } else {
+                        rays[i].at(hit.t)
+                    },
                     error_scale: error_scale[i],
                     geometric_normal: geometric[i],
                     shading_normal: shading[i],
@@ -435,15 +458,6 @@ impl Scene {
         let point = interpolate(&w, &b);
         let inf = F::splat(f32::INFINITY);
         let finite = (point.x.abs().lt(inf) & point.y.abs().lt(inf) & point.z.abs().lt(inf)).bitmask();
-        let present = (0..n).fold(0u32, |m, i| m | (u32::from(found[i].is_some()) << i));
-        // A lane whose interpolated point is not finite takes the ray's
-        // point at the hit's distance instead.
-        let point = if finite & present == present {
-            point
-        } else {
-            let at = Lanes::transposed(|i| found[i].map_or(Vec3A::ZERO, |f| rays[i].at(f.0.t).into()));
-            Lanes::select(F::mask(finite), &point, &at)
-        };
         // The fold over the three vertices, written out.
         let error_scale = abs_max_element(&w[2])
             .max_fast(abs_max_element(&w[1]).max_fast(abs_max_element(&w[0]).max_fast(F::splat(0.0))));
@@ -465,6 +479,7 @@ impl Scene {
         Some(SurfaceLanes {
             found,
             point,
+            finite,
             error_scale,
             geometric,
             shading,
@@ -585,6 +600,32 @@ mod tests {
                     got[4 * c + i] = Some(s);
                     faces[4 * c + i] = Some(*f);
                 });
+            }
+            // The points kept in lanes are each surface's point, also where a
+            // lane takes the ray's point instead of the interpolated one.
+            for c in 0..2 {
+                let (rays4, hits4) = (&ray_refs[4 * c..], &hit_refs[4 * c..]);
+                let Some(lanes) = scene.surface_lanes::<f32x4>(rays4, hits4) else {
+                    continue;
+                };
+                let fallback = SurfaceLanes {
+                    finite: lanes.finite & !(1 << (round % 4)),
+                    ..lanes
+                };
+                for (l, finite) in [(lanes, lanes.finite), (fallback, fallback.finite)] {
+                    let p = vectors(&l.points(rays4));
+                    for i in 0..4 {
+                        let Some(want) = got[4 * c + i] else {
+                            continue;
+                        };
+                        let want = if finite & (1 << i) != 0 {
+                            want.point
+                        } else {
+                            rays4[i].at(hits[4 * c + i].map_or(0.0, |h| h.t))
+                        };
+                        assert_eq!(p[i].to_array().map(f32::to_bits), want.to_array().map(f32::to_bits));
+                    }
+                }
             }
             let (mut got8, mut faces8) = (got, faces);
             if avx2 {
