@@ -12,9 +12,9 @@ use crate::phases::{Phase, PhaseClock};
 use crate::simd::LaneF32;
 use crate::surface_lanes::Facing;
 use crate::surface_lanes::MAX_SURFACE_LANES;
-use crate::surface_lanes::{SurfaceLanes, dot as dot_lanes};
+use crate::surface_lanes::{SurfaceLanes, dot as dot_lanes, vectors};
 use crate::tracer::Tracer;
-use crate::{Environment, PointLight, Scene, SceneHit, Surface, TextureFilter};
+use crate::{Environment, MaterialId, PointLight, Scene, SceneHit, Surface, TextureFilter};
 
 /// What a frame computes per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -97,6 +97,59 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3, scale: f32) -> Vec3 {
     out
 }
 
+/// [`offset_ray_origin`] lane by lane for points `p`, normals `n` and
+/// scales `scale` that are all finite (the same operations: the largest
+/// magnitude, the threshold near zero, the float step there and the
+/// integer step elsewhere): the same bits (tested).
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn offset_lanes<F: LaneF32>(p: &Lanes<F>, n: &Lanes<F>, scale: F) -> Lanes<F> {
+    // NOTE: every operand of these maxima is +0 or more and finite, where
+    // `maxps` is `f32::max`.
+    let largest = p.x.abs().max_fast(p.y.abs().max_fast(p.z.abs()));
+    let scale = scale.max_fast(largest).max_fast(F::splat(f32::MIN_POSITIVE));
+    let origin = scale / F::splat(32.0);
+    let float_offset = F::splat(OFFSET_ULPS) * scale * F::splat(f32::EPSILON);
+    Lanes {
+        x: offset_axis(p.x, n.x, origin, float_offset),
+        y: offset_axis(p.y, n.y, origin, float_offset),
+        z: offset_axis(p.z, n.z, origin, float_offset),
+    }
+}
+
+/// One coordinate of [`offset_lanes`].
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn offset_axis<F: LaneF32>(p: F, n: F, origin: F, float_offset: F) -> F {
+    let near = p.abs().lt(origin);
+    let moved = p + float_offset * n;
+    // `(16 n) as i32`: |16 n| <= 16 for a unit or zero normal.
+    let of = (F::splat(OFFSET_ULPS) * n).trunc_int();
+    let bits = p.to_bits();
+    let stepped = p
+        .lt(F::splat(0.0))
+        .select(F::from_bits(bits - of), F::from_bits(bits + of));
+    near.select(moved, stepped)
+}
+
+/// The origins of rays leaving hit points `p` on the side of `n`
+/// ([`offset_ray_origin`]) in the lanes `lanes`: in lanes where every input
+/// is finite ([`offset_lanes`]), one lane at a time otherwise.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn offset_origins<F: LaneF32>(p: &Lanes<F>, n: &Lanes<F>, scale: F, lanes: u32) -> Lanes<F> {
+    let inf = F::splat(f32::INFINITY);
+    let finite = |v: F| v.abs().lt(inf);
+    let all = finite(p.x) & finite(p.y) & finite(p.z) & finite(n.x) & finite(n.y) & finite(n.z) & finite(scale);
+    if all.bitmask() & lanes == lanes {
+        return offset_lanes(p, n, scale);
+    }
+    let (pv, nv) = (crate::surface_lanes::vectors(p), crate::surface_lanes::vectors(n));
+    let mut sv = [0.0; MAX_SURFACE_LANES];
+    scale.write_to(&mut sv);
+    Lanes::transposed(|i| offset_ray_origin(pv[i], nv[i], sv[i]).into())
+}
+
 /// The shadow ray from `from` towards a point light at `light`, ending just
 /// short of it (the interval `[0, SHADOW_RAY_END]` of `light - from`).
 // PERF: the ray built in place (`Ray::new_inline`): kitchen Whitted frames
@@ -153,6 +206,9 @@ pub(crate) struct Shader<'a, T: Tracer = Scene> {
     pub finite_lights: u64,
     /// The time by phase, when the renderer asks for it.
     pub clock: PhaseClock,
+    /// Whitted packets stay in lanes ([`Shader::shade_whitted_lanes`]): no
+    /// material of the scene is one-sided or has an emission texture.
+    whitted_lanes: bool,
 }
 
 impl<'a, T: Tracer> Shader<'a, T> {
@@ -189,6 +245,10 @@ impl<'a, T: Tracer> Shader<'a, T> {
                 .enumerate()
                 .fold(0, |m, (j, l)| m | (u64::from(l.color.is_finite()) << j)),
             clock: PhaseClock::default(),
+            whitted_lanes: scene
+                .materials()
+                .iter()
+                .all(|m| !m.one_sided && m.emission_texture.is_none()),
         }
     }
 }
@@ -404,7 +464,7 @@ impl<T: Tracer> Shader<'_, T> {
         };
         // PERF: only Whitted mode traces shadow rays.
         let silent = if self.mode == RenderMode::Whitted {
-            self.silent_lights(&surf, d, nf, ns)
+            self.silent_lights(surf.material, surf.point, d, nf, ns)
         } else {
             0
         };
@@ -438,16 +498,16 @@ impl<T: Tracer> Shader<'_, T> {
     /// instead of 3.80 million, the same bytes; frames 400..402 4-7% faster
     /// side by side (docs/PERFORMANCE.md). Other materials cost one compare.
     #[inline]
-    fn silent_lights(&self, surf: &Surface, d: Vec3, nf: Vec3, ns: Vec3) -> u64 {
-        let mat = &self.scene.materials()[surf.material.index() as usize];
+    fn silent_lights(&self, material: MaterialId, point: Vec3, d: Vec3, nf: Vec3, ns: Vec3) -> u64 {
+        let mat = &self.scene.materials()[material.index() as usize];
         if mat.diffuse != Vec3::ZERO {
             return 0;
         }
-        let (highlights, floor) = self.highlights(surf);
+        let (highlights, floor) = self.highlights_of(material);
         let mut silent = 0u64;
         for (q, quad) in self.light_quads.iter().enumerate().take(16) {
             let quiet = if highlights {
-                let terms = light_terms(quad, surf.point, nf, ns, -d);
+                let terms = light_terms(quad, point, nf, ns, -d);
                 let power = highlight_powers(wide::f32x4::from(terms.rdv), terms.lit, mat.shininess, floor);
                 (0..4).fold(0u64, |m, i| {
                     m | (u64::from(terms.lit & (1 << i) == 0 || power[i] == 0.0) << i)
@@ -466,7 +526,13 @@ impl<T: Tracer> Shader<'_, T> {
     /// view of it.
     #[inline]
     fn highlights(&self, surf: &Surface) -> (bool, f32) {
-        let index = surf.material.index() as usize;
+        self.highlights_of(surf.material)
+    }
+
+    /// [`Shader::highlights`] of a material.
+    #[inline]
+    fn highlights_of(&self, material: MaterialId) -> (bool, f32) {
+        let index = material.index() as usize;
         let mat = &self.scene.materials()[index];
         let floor = self.zero_power.get(index).copied().unwrap_or(0.0);
         (mat.shininess > 0.0 && mat.specular != Vec3::ZERO, floor)
@@ -790,34 +856,19 @@ impl<T: Tracer> Shader<'_, T> {
             self.shade_local_lanes::<N, ON, F>(packet, &hits, block, t);
             return;
         }
+        if self.whitted_lanes {
+            self.shade_whitted_lanes::<N, ON, F>(packet, &hits, block, t);
+            return;
+        }
         // PERF: filled in place (`from_fn` moved each lane's result twice).
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
         self.prepare_lanes::<N, F>(rays, cones, &hits, lanes, &mut preps);
         let t = self.clock.stop::<ON>(t, Phase::Surface);
-        let mut blocked = Vec::new();
-        if self.mode == RenderMode::Whitted {
-            blocked.reserve(self.env.lights.len());
-            // PERF: the shadow rays four lanes at a time: the hits' points,
-            // facing normals and ray origins gathered once for every light,
-            // the lit side decided and the rays made in registers
-            // (`ShadowLanes::rays`: each lane is `shadow_ray`'s ray). Lanes
-            // without a ray keep a camera ray, never read.
-            let chunks = ShadowLanes::gather(&preps);
-            let mut shadow = *rays;
-            for (j, light) in self.env.lights.iter().enumerate() {
-                let mut mask = 0u32;
-                for (c, chunk) in chunks.iter().enumerate().take(N / 4) {
-                    mask |= chunk.rays(j, light.position, &mut shadow[4 * c..]) << (4 * c);
-                }
-                self.counts.shadow += u64::from(mask.count_ones());
-                blocked.push(if mask == 0 {
-                    0
-                } else {
-                    self.tracer
-                        .occluded_packet_toward_hinted(&shadow, mask, light.position, &mut self.occluders[j])
-                });
-            }
-        }
+        let blocked = if self.mode == RenderMode::Whitted {
+            self.trace_shadows(&ShadowLanes::gather(&preps), rays)
+        } else {
+            Vec::new()
+        };
         // GL-like frames trace no shadow rays: no span for them.
         let t = if self.mode == RenderMode::Whitted {
             self.clock.stop::<ON>(t, Phase::Shadow)
@@ -869,6 +920,177 @@ impl<T: Tracer> Shader<'_, T> {
             } else {
                 block.color[l] = self.env.background;
                 block.bounces[l] = [None; 2];
+            }
+        }
+        self.clock.stop::<ON>(t, Phase::Lights);
+    }
+
+    /// The lanes whose shadow ray towards each light is blocked, per light
+    /// (Whitted mode): the rays of `chunks` ([`ShadowLanes::rays`]) traced
+    /// towards the light as one packet.
+    // PERF: the shadow rays four lanes at a time: the hits' points, facing
+    // normals and ray origins gathered once for every light, the lit side
+    // decided and the rays made in registers (`ShadowLanes::rays`: each lane
+    // is `shadow_ray`'s ray). Lanes without a ray keep a camera ray of
+    // `rays`, never read.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn trace_shadows<const N: usize>(&mut self, chunks: &[ShadowLanes; 4], rays: &[Ray; N]) -> Vec<u32> {
+        let mut blocked = Vec::with_capacity(self.env.lights.len());
+        let mut shadow = *rays;
+        for (j, light) in self.env.lights.iter().enumerate() {
+            let mut mask = 0u32;
+            for (c, chunk) in chunks.iter().enumerate().take(N / 4) {
+                mask |= chunk.rays(j, light.position, &mut shadow[4 * c..]) << (4 * c);
+            }
+            self.counts.shadow += u64::from(mask.count_ones());
+            blocked.push(if mask == 0 {
+                0
+            } else {
+                self.tracer
+                    .occluded_packet_toward_hinted(&shadow, mask, light.position, &mut self.occluders[j])
+            });
+        }
+        blocked
+    }
+
+    /// [`Shader::shade_block_as`] of Whitted packets, kept in lanes where
+    /// no per-hit struct is needed: a chunk's surfaces ([`Scene::surface_lanes`])
+    /// give the shadow rays' origins ([`offset_origins`]) and the light
+    /// loop's inputs ([`Shader::lit_lanes`]) in lanes; only hits whose
+    /// material reflects or refracts, below the last depth, get a
+    /// [`Prepared`] for their bounces. Each lane is the bytes of the
+    /// per-hit path (the same operations). Scenes with one-sided materials
+    /// or emission textures take that path ([`Shader::whitted_lanes`]).
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn shade_whitted_lanes<const N: usize, const ON: bool, F: LaneF32>(
+        &mut self,
+        packet: &BlockIn<'_, N>,
+        hits: &[Option<SceneHit>; N],
+        block: &mut ShadedBlock<N>,
+        t: Option<quanta::Instant>,
+    ) {
+        const M: usize = MAX_SURFACE_LANES;
+        let &BlockIn {
+            rays,
+            cones,
+            lanes,
+            depth,
+        } = packet;
+        let scene = self.scene;
+        let w = F::LANES;
+        debug_assert_eq!(N % w, 0, "{w} lanes do not divide a packet of {N}");
+        block.lanes = lanes;
+        let bouncing = depth < self.max_depth;
+        let mut preps: [Option<Prepared>; N] = [const { None }; N];
+        let mut lits: [Option<LitLanes<F>>; 4] = [None; 4];
+        let mut shadows = [ShadowLanes::default(); 4];
+        let mut have = 0u32;
+        let mut t = t;
+        for c in 0..N / w {
+            let bits = (lanes >> (w * c)) & lanes_mask(w);
+            if bits == 0 {
+                continue;
+            }
+            let some: [&Ray; M] = std::array::from_fn(|i| &rays[(w * c + i) % N]);
+            let their: [Option<&SceneHit>; M] =
+                std::array::from_fn(|i| hits[(w * c + i) % N].as_ref().filter(|_| i < w && bits & (1 << i) != 0));
+            let Some(surf) = scene.surface_lanes::<F>(&some, &their) else {
+                continue;
+            };
+            let mut found = 0u32;
+            let (mut quiet, mut bounce) = (0u32, 0u32);
+            for (i, f) in surf.found.iter().enumerate().take(w) {
+                let Some((_, _, material)) = f else {
+                    continue;
+                };
+                let m = &scene.materials()[material.index() as usize];
+                found |= 1 << i;
+                quiet |= u32::from(m.diffuse == Vec3::ZERO) << i;
+                bounce |= u32::from(bouncing && (m.transmission > 0.0 || m.specular != Vec3::ZERO)) << i;
+            }
+            // `Cone::width_for` lane by lane.
+            let cone = |i: usize| cones[(w * c + i) % N];
+            let t_hit = F::from_fn(|i| surf.found[i].map_or(0.0, |f| f.0.t));
+            let width = F::from_fn(|i| cone(i).width) + F::from_fn(|i| cone(i).spread) * t_hit * surf.facing.len;
+            let mut widths = [0.0; M];
+            width.write_to(&mut widths);
+            let p = surf.points(&some);
+            let p_out = offset_origins(&p, &surf.facing.nf, surf.error_scale, found);
+            // Silent lights (materials without diffuse light only), and a
+            // `Prepared` for each hit that bounces.
+            let mut silent = [0u64; M];
+            if quiet | bounce != 0 {
+                let (pv, ov) = (vectors(&p), vectors(&p_out));
+                let (dv, nfv, nsv) = (
+                    vectors(&surf.facing.d),
+                    vectors(&surf.facing.nf),
+                    vectors(&surf.facing.ns),
+                );
+                for i in lanes_of(quiet) {
+                    if let Some((_, _, material)) = surf.found[i] {
+                        silent[i] = self.silent_lights(material, pv[i], dv[i], nfv[i], nsv[i]);
+                    }
+                }
+                if bounce != 0 {
+                    surf.each(&some, bounce, &mut |i, surface, facing| {
+                        preps[w * c + i] = Some(Prepared {
+                            surf: surface,
+                            d: facing.d,
+                            back: facing.back,
+                            nf: facing.nf,
+                            ns: facing.ns,
+                            p_out: ov[i],
+                            cone: Cone {
+                                width: widths[i],
+                                spread: cones[w * c + i].spread,
+                            },
+                            silent: silent[i],
+                        });
+                    });
+                }
+            }
+            for q in 0..w / 4 {
+                let part = |v: &Lanes<F>| quarter(v, q);
+                shadows[w * c / 4 + q] = ShadowLanes {
+                    p: part(&p),
+                    nf: part(&surf.facing.nf),
+                    out: part(&p_out),
+                    silent: std::array::from_fn(|k| silent[4 * q + k]),
+                    lanes: (found >> (4 * q)) & 0xf,
+                };
+            }
+            for i in lanes_of(found) {
+                block.cones[w * c + i] = Cone {
+                    width: widths[i],
+                    spread: cones[w * c + i].spread,
+                };
+            }
+            have |= found << (w * c);
+            t = self.clock.stop::<ON>(t, Phase::Surface);
+            lits[c] = Some(self.lit_lanes(&surf, p, width, found));
+            t = self.clock.stop::<ON>(t, Phase::Textures);
+        }
+        let blocked = self.trace_shadows(&shadows, rays);
+        let t = self.clock.stop::<ON>(t, Phase::Shadow);
+        for (c, lit) in lits.iter().enumerate() {
+            let Some(lit) = lit else {
+                continue;
+            };
+            let bits = (have >> (w * c)) & lanes_mask(w);
+            let blocked = |j: usize| blocked.get(j).map_or(0, |m| (m >> (w * c)) & lanes_mask(w));
+            let color = light_sum_of_lanes(&self.env.lights, lit, bits, blocked);
+            write_colors(&color, bits, &mut block.color[w * c..]);
+        }
+        for l in lanes_of(lanes) {
+            if let Some(p) = &preps[l] {
+                self.bounces(p, depth, &mut block.bounces[l]);
+            } else {
+                block.bounces[l] = [None; 2];
+                if have & (1 << l) == 0 {
+                    block.color[l] = self.env.background;
+                }
             }
         }
         self.clock.stop::<ON>(t, Phase::Lights);
@@ -1244,6 +1466,26 @@ fn lit_side(prep: &Prepared, light: &PointLight) -> Option<Vec3> {
     to_light.try_normalize().filter(|l| l.dot(prep.nf) > 0.0)
 }
 
+/// Lanes `4 q..4 q + 4` of `v` as four-lane vectors.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn quarter<F: LaneF32>(v: &Lanes<F>, q: usize) -> Lanes {
+    let (mut x, mut y, mut z) = (
+        [0.0; MAX_SURFACE_LANES],
+        [0.0; MAX_SURFACE_LANES],
+        [0.0; MAX_SURFACE_LANES],
+    );
+    v.x.write_to(&mut x);
+    v.y.write_to(&mut y);
+    v.z.write_to(&mut z);
+    let four = |a: &[f32; MAX_SURFACE_LANES]| f32x4::from([a[4 * q], a[4 * q + 1], a[4 * q + 2], a[4 * q + 3]]);
+    Lanes {
+        x: four(&x),
+        y: four(&y),
+        z: four(&z),
+    }
+}
+
 /// Four lanes of a packet's prepared hits as the shadow rays need them:
 /// hit points, facing normals and the origins of rays leaving them, with
 /// each lane's silent lights.
@@ -1568,6 +1810,79 @@ mod tests {
             "{silent} silent, {loud_changed} changed"
         );
         assert_eq!(diffuse_silent, 0, "a diffuse material has no silent light");
+    }
+
+    /// Ray origins four and eight lanes at a time are `offset_ray_origin`'s
+    /// bits: points near zero and far from it, of both signs, on any
+    /// scale, unit and zero normals, scales below and above the points'.
+    #[test]
+    fn offsets_in_lanes_are_each_lanes_own() {
+        use rand::rngs::SmallRng;
+        use rand::{Rng, SeedableRng};
+        let mut rng = SmallRng::seed_from_u64(0x0ff_5e7);
+        let coord = |rng: &mut SmallRng| {
+            let m = 10f32.powf(rng.random_range(-42.0..30.0));
+            match rng.random_range(0..6) {
+                0 => 0.0,
+                1 => -0.0,
+                _ => m * rng.random_range(-1.0..1.0),
+            }
+        };
+        for round in 0..20_000 {
+            let p: [Vec3; 8] = std::array::from_fn(|_| Vec3::new(coord(&mut rng), coord(&mut rng), coord(&mut rng)));
+            let n: [Vec3; 8] = std::array::from_fn(|_| {
+                if rng.random_bool(0.1) {
+                    Vec3::ZERO
+                } else {
+                    Vec3::new(
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                    )
+                    .normalize_or_zero()
+                }
+            });
+            let scale: [f32; 8] = std::array::from_fn(|i| p[i].abs().max_element() * rng.random_range(0.0..4.0));
+            let want: [Vec3; 8] = std::array::from_fn(|i| offset_ray_origin(p[i], n[i], scale[i]));
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            for c in 0..2 {
+                let lanes = |v: &[Vec3; 8]| Lanes::<f32x4>::transposed(|i| v[4 * c + i].into());
+                let got = offset_lanes(&lanes(&p), &lanes(&n), f32x4::from_fn(|i| scale[4 * c + i]));
+                let got = crate::surface_lanes::vectors(&got);
+                for i in 0..4 {
+                    assert_eq!(
+                        bits(got[i]),
+                        bits(want[4 * c + i]),
+                        "round {round}: {:?} {:?}",
+                        p[4 * c + i],
+                        n[4 * c + i]
+                    );
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            if openrt_accel::avx2() {
+                // SAFETY: the CPU has AVX2 (detected).
+                let got = unsafe { offsets_eight(&p, &n, &scale) };
+                for i in 0..8 {
+                    assert_eq!(bits(got[i]), bits(want[i]), "round {round}, eight lanes: {:?}", p[i]);
+                }
+            }
+        }
+    }
+
+    /// [`offset_lanes`] eight lanes at a time, compiled for AVX2 as the
+    /// renderer's shading is.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn offsets_eight(p: &[Vec3; 8], n: &[Vec3; 8], scale: &[f32; 8]) -> [Vec3; 8] {
+        use crate::simd::F32x8;
+        let got = offset_lanes(
+            &Lanes::<F32x8>::transposed(|i| p[i].into()),
+            &Lanes::<F32x8>::transposed(|i| n[i].into()),
+            F32x8::from_fn(|i| scale[i]),
+        );
+        let v = crate::surface_lanes::vectors(&got);
+        std::array::from_fn(|i| v[i])
     }
 
     #[test]

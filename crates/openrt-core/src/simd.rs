@@ -79,6 +79,9 @@ pub(crate) trait LaneF32:
     fn bitmask(self) -> u32;
     /// Rounded to the nearest integer, ties to even.
     fn round_int(self) -> Self::I;
+    /// Truncated towards zero, as `f32 as i32` for values inside the range
+    /// of `i32` (out of range and NaN: any value, unlike `as`).
+    fn trunc_int(self) -> Self::I;
     /// The integers converted.
     fn from_int(i: Self::I) -> Self;
     /// The bits as integers.
@@ -167,6 +170,10 @@ impl LaneF32 for f32x4 {
         self.fast_round_int()
     }
     #[inline(always)]
+    fn trunc_int(self) -> i32x4 {
+        self.fast_trunc_int()
+    }
+    #[inline(always)]
     fn from_int(i: i32x4) -> Self {
         f32x4::from_i32x4(i)
     }
@@ -228,10 +235,10 @@ mod avx2 {
     use std::arch::x86_64::{
         __m128, __m256, __m256i, _CMP_EQ_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_epi32, _mm256_add_ps, _mm256_and_ps,
         _mm256_and_si256, _mm256_andnot_ps, _mm256_castps_si256, _mm256_castsi256_ps, _mm256_cmp_ps,
-        _mm256_cmpeq_epi32, _mm256_cmpgt_epi32, _mm256_cvtepi32_ps, _mm256_cvtps_epi32, _mm256_div_ps, _mm256_max_ps,
-        _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set_m128, _mm256_set1_epi32,
-        _mm256_set1_ps, _mm256_setr_epi32, _mm256_setr_ps, _mm256_slli_epi32, _mm256_sqrt_ps, _mm256_srai_epi32,
-        _mm256_storeu_ps, _mm256_sub_epi32, _mm256_sub_ps, _mm256_xor_ps,
+        _mm256_cmpeq_epi32, _mm256_cmpgt_epi32, _mm256_cvtepi32_ps, _mm256_cvtps_epi32, _mm256_cvttps_epi32,
+        _mm256_div_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set_m128,
+        _mm256_set1_epi32, _mm256_set1_ps, _mm256_setr_epi32, _mm256_setr_ps, _mm256_slli_epi32, _mm256_sqrt_ps,
+        _mm256_srai_epi32, _mm256_storeu_ps, _mm256_sub_epi32, _mm256_sub_ps, _mm256_xor_ps,
     };
     use std::ops::{Add, BitAnd, Div, Mul, Neg, Sub};
 
@@ -338,6 +345,10 @@ mod avx2 {
         #[inline(always)]
         fn round_int(self) -> I32x8 {
             I32x8(unsafe { _mm256_cvtps_epi32(self.0) })
+        }
+        #[inline(always)]
+        fn trunc_int(self) -> I32x8 {
+            I32x8(unsafe { _mm256_cvttps_epi32(self.0) })
         }
         #[inline(always)]
         fn from_int(i: I32x8) -> Self {

@@ -112,7 +112,7 @@ fn abs_max_element<F: LaneF32>(v: &Lanes<F>) -> F {
 /// The lanes' vectors, `out[i]` for lane `i`.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-fn vectors<F: LaneF32>(v: &Lanes<F>) -> [Vec3; MAX_SURFACE_LANES] {
+pub(crate) fn vectors<F: LaneF32>(v: &Lanes<F>) -> [Vec3; MAX_SURFACE_LANES] {
     let (x, y, z) = (lane_values(v.x), lane_values(v.y), lane_values(v.z));
     std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
 }
@@ -318,9 +318,20 @@ impl Scene {
         hits: &[Option<&SceneHit>],
         mut emit: impl FnMut(usize, Surface, &Facing),
     ) {
-        let Some(lanes) = self.surface_lanes::<F>(rays, hits) else {
-            return;
-        };
+        if let Some(lanes) = self.surface_lanes::<F>(rays, hits) {
+            lanes.each(rays, u32::MAX, &mut emit);
+        }
+    }
+}
+
+impl<F: LaneF32> SurfaceLanes<'_, F> {
+    /// `emit(i, surface, facing)` for each lane `i` of `lanes` that has a
+    /// surface: the lanes taken apart ([`Scene::own_surfaces`]).
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    pub(crate) fn each(&self, rays: &[&Ray], lanes: u32, emit: &mut impl FnMut(usize, Surface, &Facing)) {
+        let lanes_in = lanes;
+        let lanes = self;
         let facing = facings(&lanes.facing);
         let (geometric, shading, point) = (
             vectors(&lanes.geometric),
@@ -334,7 +345,7 @@ impl Scene {
         );
         let (uvx, uvy) = (lane_values(lanes.uv[0]), lane_values(lanes.uv[1]));
         for i in 0..F::LANES {
-            let Some((hit, inst, material)) = lanes.found[i] else {
+            let Some((hit, inst, material)) = lanes.found[i].filter(|_| lanes_in & (1 << i) != 0) else {
                 continue;
             };
             emit(
@@ -359,7 +370,9 @@ impl Scene {
             );
         }
     }
+}
 
+impl Scene {
     /// [`Scene::own_surfaces`] kept in lanes: the surfaces of the hits of
     /// `F::LANES` rays, one coordinate to a register, each lane the bits of
     /// [`Scene::own_surface`] and [`Facing::of`]; `None` when no lane's hit

@@ -590,15 +590,28 @@ fn emission_is_added_unlit_and_the_same_on_every_path() {
     assert!(bad.is_err(), "{bad:?}");
 }
 
-/// GL-like packets keep their hits in lanes from the surfaces to the
-/// colours; every lane must still be the single-ray path's bytes, whatever
-/// a packet mixes: materials with and without highlights, textures with
+/// Packets keep their hits in lanes from the surfaces to the colours
+/// (GL-like) or to the shadow rays and light loop (Whitted); every lane
+/// must still be the single-ray path's bytes, whatever a packet mixes:
+/// materials with and without highlights, mirrors and glass, textures with
 /// repeat and clamp addressing (and none), an emission texture and a
-/// one-sided card seen from behind (both shaded one lane at a time),
-/// mirrored and rotated instances, background lanes and an image whose
-/// size no block divides; every texture filter and packet width.
+/// one-sided card seen from behind (lane by lane in GL-like packets, the
+/// per-hit path in Whitted ones), mirrored and rotated instances,
+/// background lanes and an image whose size no block divides; every
+/// texture filter and packet width, both modes, with and without the card
+/// and the emission texture.
 #[test]
-fn gl_like_packets_give_the_single_ray_bytes_on_mixed_lanes() {
+fn packets_give_the_single_ray_bytes_on_mixed_lanes() {
+    for plain in [false, true] {
+        for mode in [RenderMode::GlLike, RenderMode::Whitted] {
+            mixed_lanes(plain, mode);
+        }
+    }
+}
+
+/// [`packets_give_the_single_ray_bytes_on_mixed_lanes`] in one mode,
+/// `plain`: without the one-sided card and the emission texture.
+fn mixed_lanes(plain: bool, mode: RenderMode) {
     use glam::{Quat, Vec2};
     use openrt_accel::PacketWidth;
     use openrt_core::{Backend, PrimitiveKind, Texture, TextureFilter, TextureWrap};
@@ -635,7 +648,9 @@ fn gl_like_packets_give_the_single_ray_bytes_on_mixed_lanes() {
         Material {
             diffuse: Vec3::splat(0.3),
             emission: Vec3::new(0.4, 0.2, 0.1),
-            emission_texture: Some(glow),
+            emission_texture: (!plain).then_some(glow),
+            transmission: 0.4,
+            ior: 1.4,
             ..Material::default()
         },
         Material {
@@ -646,7 +661,7 @@ fn gl_like_packets_give_the_single_ray_bytes_on_mixed_lanes() {
         },
         Material {
             diffuse: Vec3::new(0.1, 0.9, 0.1),
-            one_sided: true,
+            one_sided: !plain,
             ..Material::default()
         },
     ]
@@ -745,7 +760,7 @@ fn gl_like_packets_give_the_single_ray_bytes_on_mixed_lanes() {
             let s = RenderSettings {
                 width: 45,
                 height: 37,
-                mode: RenderMode::GlLike,
+                mode,
                 texture_filter: filter,
                 ..RenderSettings::default()
             };
