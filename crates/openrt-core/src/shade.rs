@@ -993,9 +993,7 @@ impl<T: Tracer> Shader<'_, T> {
             if bits == 0 {
                 continue;
             }
-            let some: [&Ray; M] = std::array::from_fn(|i| &rays[(w * c + i) % N]);
-            let their: [Option<&SceneHit>; M] =
-                std::array::from_fn(|i| hits[(w * c + i) % N].as_ref().filter(|_| i < w && bits & (1 << i) != 0));
+            let (some, their) = chunk_of::<N, F>(rays, hits, c, bits);
             let Some(surf) = scene.surface_lanes::<F>(&some, &their) else {
                 continue;
             };
@@ -1010,10 +1008,7 @@ impl<T: Tracer> Shader<'_, T> {
                 quiet |= u32::from(m.diffuse == Vec3::ZERO) << i;
                 bounce |= u32::from(bouncing && (m.transmission > 0.0 || m.specular != Vec3::ZERO)) << i;
             }
-            // `Cone::width_for` lane by lane.
-            let cone = |i: usize| cones[(w * c + i) % N];
-            let t_hit = F::from_fn(|i| surf.found[i].map_or(0.0, |f| f.0.t));
-            let width = F::from_fn(|i| cone(i).width) + F::from_fn(|i| cone(i).spread) * t_hit * surf.facing.len;
+            let width = cone_widths::<N, F>(cones, c, &surf);
             let mut widths = [0.0; M];
             width.write_to(&mut widths);
             let p = surf.points(&some);
@@ -1133,9 +1128,7 @@ impl<T: Tracer> Shader<'_, T> {
             }
             // Surfaces, their cones' widths, and the lanes left to the
             // one-by-one path.
-            let some: [&Ray; M] = std::array::from_fn(|i| &rays[(w * c + i) % N]);
-            let their: [Option<&SceneHit>; M] =
-                std::array::from_fn(|i| hits[(w * c + i) % N].as_ref().filter(|_| i < w && bits & (1 << i) != 0));
+            let (some, their) = chunk_of::<N, F>(rays, hits, c, bits);
             let Some(surf) = scene.surface_lanes::<F>(&some, &their) else {
                 continue;
             };
@@ -1153,10 +1146,7 @@ impl<T: Tracer> Shader<'_, T> {
                     found |= 1 << i;
                 }
             }
-            // `Cone::width_for` lane by lane.
-            let cone = |i: usize| cones[(w * c + i) % N];
-            let t_hit = F::from_fn(|i| surf.found[i].map_or(0.0, |f| f.0.t));
-            let width = F::from_fn(|i| cone(i).width) + F::from_fn(|i| cone(i).spread) * t_hit * surf.facing.len;
+            let width = cone_widths::<N, F>(cones, c, &surf);
             have |= found << (w * c);
             t = self.clock.stop::<ON>(t, Phase::Surface);
             if found == 0 {
@@ -1464,6 +1454,32 @@ pub(crate) type Bounces = [Option<(Vec3, Ray)>; 2];
 fn lit_side(prep: &Prepared, light: &PointLight) -> Option<Vec3> {
     let to_light = light.position - prep.surf.point;
     to_light.try_normalize().filter(|l| l.dot(prep.nf) > 0.0)
+}
+
+/// The rays and hits of chunk `c` of a packet (`F::LANES` lanes), the
+/// hits of lanes outside `bits` left out: [`Scene::surface_lanes`]' input.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn chunk_of<'r, const N: usize, F: LaneF32>(
+    rays: &'r [Ray; N],
+    hits: &'r [Option<SceneHit>; N],
+    c: usize,
+    bits: u32,
+) -> ([&'r Ray; MAX_SURFACE_LANES], [Option<&'r SceneHit>; MAX_SURFACE_LANES]) {
+    let w = F::LANES;
+    (
+        std::array::from_fn(|i| &rays[(w * c + i) % N]),
+        std::array::from_fn(|i| hits[(w * c + i) % N].as_ref().filter(|_| i < w && bits & (1 << i) != 0)),
+    )
+}
+
+/// [`Cone::width_for`] of chunk `c`'s lanes at their hits.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn cone_widths<const N: usize, F: LaneF32>(cones: &[Cone; N], c: usize, surf: &SurfaceLanes<'_, F>) -> F {
+    let cone = |i: usize| cones[(F::LANES * c + i) % N];
+    let t = F::from_fn(|i| surf.found[i].map_or(0.0, |f| f.0.t));
+    F::from_fn(|i| cone(i).width) + F::from_fn(|i| cone(i).spread) * t * surf.facing.len
 }
 
 /// Lanes `4 q..4 q + 4` of `v` as four-lane vectors.
