@@ -138,13 +138,19 @@ fn offset_axis<F: LaneF32>(p: F, n: F, origin: F, float_offset: F) -> F {
 #[allow(clippy::inline_always)]
 #[inline(always)]
 fn offset_origins<F: LaneF32>(p: &Lanes<F>, n: &Lanes<F>, scale: F, lanes: u32) -> Lanes<F> {
+    // NOTE: no closure holds lane arithmetic (simd.rs).
     let inf = F::splat(f32::INFINITY);
-    let finite = |v: F| v.abs().lt(inf);
-    let all = finite(p.x) & finite(p.y) & finite(p.z) & finite(n.x) & finite(n.y) & finite(n.z) & finite(scale);
+    let all = p.x.abs().lt(inf)
+        & p.y.abs().lt(inf)
+        & p.z.abs().lt(inf)
+        & n.x.abs().lt(inf)
+        & n.y.abs().lt(inf)
+        & n.z.abs().lt(inf)
+        & scale.abs().lt(inf);
     if all.bitmask() & lanes == lanes {
         return offset_lanes(p, n, scale);
     }
-    let (pv, nv) = (crate::surface_lanes::vectors(p), crate::surface_lanes::vectors(n));
+    let (pv, nv) = (vectors(p), vectors(n));
     let mut sv = [0.0; MAX_SURFACE_LANES];
     scale.write_to(&mut sv);
     Lanes::transposed(|i| offset_ray_origin(pv[i], nv[i], sv[i]).into())
@@ -1016,35 +1022,32 @@ impl<T: Tracer> Shader<'_, T> {
             // Silent lights (materials without diffuse light only), and a
             // `Prepared` for each hit that bounces.
             let mut silent = [0u64; M];
-            if quiet | bounce != 0 {
-                let (pv, ov) = (vectors(&p), vectors(&p_out));
-                let (dv, nfv, nsv) = (
-                    vectors(&surf.facing.d),
-                    vectors(&surf.facing.nf),
-                    vectors(&surf.facing.ns),
-                );
+            if quiet != 0 {
+                let (pv, dv) = (vectors(&p), vectors(&surf.facing.d));
+                let (nfv, nsv) = (vectors(&surf.facing.nf), vectors(&surf.facing.ns));
                 for i in lanes_of(quiet) {
                     if let Some((_, _, material)) = surf.found[i] {
                         silent[i] = self.silent_lights(material, pv[i], dv[i], nfv[i], nsv[i]);
                     }
                 }
-                if bounce != 0 {
-                    surf.each(&some, bounce, &mut |i, surface, facing| {
-                        preps[w * c + i] = Some(Prepared {
-                            surf: surface,
-                            d: facing.d,
-                            back: facing.back,
-                            nf: facing.nf,
-                            ns: facing.ns,
-                            p_out: ov[i],
-                            cone: Cone {
-                                width: widths[i],
-                                spread: cones[w * c + i].spread,
-                            },
-                            silent: silent[i],
-                        });
+            }
+            if bounce != 0 {
+                let ov = vectors(&p_out);
+                surf.each(&some, bounce, &mut |i, surface, facing| {
+                    preps[w * c + i] = Some(Prepared {
+                        surf: surface,
+                        d: facing.d,
+                        back: facing.back,
+                        nf: facing.nf,
+                        ns: facing.ns,
+                        p_out: ov[i],
+                        cone: Cone {
+                            width: widths[i],
+                            spread: cones[w * c + i].spread,
+                        },
+                        silent: silent[i],
                     });
-                }
+                });
             }
             for q in 0..w / 4 {
                 let part = |v: &Lanes<F>| quarter(v, q);
@@ -1056,12 +1059,7 @@ impl<T: Tracer> Shader<'_, T> {
                     lanes: (found >> (4 * q)) & 0xf,
                 };
             }
-            for i in lanes_of(found) {
-                block.cones[w * c + i] = Cone {
-                    width: widths[i],
-                    spread: cones[w * c + i].spread,
-                };
-            }
+            set_cones(block, cones, w * c, &widths, found);
             have |= found << (w * c);
             t = self.clock.stop::<ON>(t, Phase::Surface);
             lits[c] = Some(self.lit_lanes(&surf, p, width, found));
@@ -1159,12 +1157,7 @@ impl<T: Tracer> Shader<'_, T> {
             write_colors(&color, found, &mut block.color[w * c..]);
             let mut widths = [0.0; M];
             width.write_to(&mut widths);
-            for i in lanes_of(found) {
-                block.cones[w * c + i] = Cone {
-                    width: widths[i],
-                    spread: cones[w * c + i].spread,
-                };
-            }
+            set_cones(block, cones, w * c, &widths, found);
             t = self.clock.stop::<ON>(t, Phase::Lights);
         }
         for l in lanes_of(lanes & !have & !alone) {
@@ -1223,11 +1216,11 @@ impl<T: Tracer> Shader<'_, T> {
                     }
                 }
                 // Lanes without a lookup repeat the first one's (not kept).
-                let Some(k0) = four.iter().position(Option::is_some) else {
+                let Some((k0, first)) = four.iter().enumerate().find_map(|(k, t)| t.map(|t| (k, t))) else {
                     continue;
                 };
                 let at = |k: usize| if four[k].is_some() { 4 * q + k } else { 4 * q + k0 };
-                let texs = std::array::from_fn(|k| four[k].or(four[k0]).unwrap_or_else(|| unreachable!()));
+                let texs = four.map(|t| t.unwrap_or(first));
                 let got = crate::texture::trilinear_lanes(
                     texs,
                     std::array::from_fn(|k| uv(at(k))),
@@ -1249,15 +1242,15 @@ impl<T: Tracer> Shader<'_, T> {
             let Some((_, _, m)) = surf.found[i] else {
                 continue;
             };
-            let index = m.index() as usize;
-            let mat = &scene.materials()[index];
+            let mat = &scene.materials()[m.index() as usize];
             let tex = texels[i];
             base[i] = ambient * (Vec3A::from(mat.ambient) * tex) + Vec3A::from(mat.emission);
             kd[i] = Vec3A::from(mat.diffuse) * tex;
             specular[i] = mat.specular.into();
+            let (highlights, zero_below) = self.highlights_of(m);
             shininess[i] = mat.shininess;
-            floor[i] = self.zero_power.get(index).copied().unwrap_or(0.0);
-            bright |= u32::from(mat.shininess > 0.0 && mat.specular != Vec3::ZERO) << i;
+            floor[i] = zero_below;
+            bright |= u32::from(highlights) << i;
         }
         let all = F::mask(lanes_mask(F::LANES));
         LitLanes {
@@ -1480,6 +1473,19 @@ fn cone_widths<const N: usize, F: LaneF32>(cones: &[Cone; N], c: usize, surf: &S
     let cone = |i: usize| cones[(F::LANES * c + i) % N];
     let t = F::from_fn(|i| surf.found[i].map_or(0.0, |f| f.0.t));
     F::from_fn(|i| cone(i).width) + F::from_fn(|i| cone(i).spread) * t * surf.facing.len
+}
+
+/// The cones of a chunk's `lanes` at their hits: widths `widths` (lane
+/// `i` of the chunk starting at packet lane `first`), their rays' spreads.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn set_cones<const N: usize>(block: &mut ShadedBlock<N>, cones: &[Cone; N], first: usize, widths: &[f32], lanes: u32) {
+    for i in lanes_of(lanes) {
+        block.cones[first + i] = Cone {
+            width: widths[i],
+            spread: cones[first + i].spread,
+        };
+    }
 }
 
 /// Lanes `4 q..4 q + 4` of `v` as four-lane vectors.
