@@ -993,6 +993,7 @@ impl<T: Tracer> Shader<'_, T> {
         let mut lits: [Option<LitLanes<F>>; 4] = [None; 4];
         let mut shadows = [ShadowLanes::default(); 4];
         let mut have = 0u32;
+        let mut mirrored = 0u32;
         let mut t = t;
         for c in 0..N / w {
             let bits = (lanes >> (w * c)) & lanes_mask(w);
@@ -1004,7 +1005,8 @@ impl<T: Tracer> Shader<'_, T> {
                 continue;
             };
             let mut found = 0u32;
-            let (mut quiet, mut bounce) = (0u32, 0u32);
+            let (mut quiet, mut bounce, mut refracts) = (0u32, 0u32, 0u32);
+            let mut specular = [Vec3::ZERO; M];
             for (i, f) in surf.found.iter().enumerate().take(w) {
                 let Some((_, _, material)) = f else {
                     continue;
@@ -1013,6 +1015,8 @@ impl<T: Tracer> Shader<'_, T> {
                 found |= 1 << i;
                 quiet |= u32::from(m.diffuse == Vec3::ZERO) << i;
                 bounce |= u32::from(bouncing && (m.transmission > 0.0 || m.specular != Vec3::ZERO)) << i;
+                refracts |= u32::from(m.transmission > 0.0) << i;
+                specular[i] = m.specular;
             }
             let width = cone_widths::<N, F>(cones, c, &surf);
             let mut widths = [0.0; M];
@@ -1033,7 +1037,23 @@ impl<T: Tracer> Shader<'_, T> {
             }
             if bounce != 0 {
                 let ov = vectors(&p_out);
-                surf.each(&some, bounce, &mut |i, surface, facing| {
+                // Mirrors: the reflected rays of `Shader::bounces`, in lanes.
+                let mirror = bounce & !refracts;
+                if mirror != 0 {
+                    let f = &surf.facing;
+                    let r = reflect_lanes(&f.d, &f.ns);
+                    let n = dot_lanes(&r, &f.nf);
+                    let zero = F::splat(0.0);
+                    let inward = F::mask(n.lt(zero).bitmask() | n.eq(zero).bitmask());
+                    let r = vectors(&Lanes::select(inward, &reflect_lanes(&f.d, &f.nf), &r));
+                    for i in lanes_of(mirror) {
+                        self.counts.reflection += 1;
+                        let ray = Ray::new(ov[i], r[i], 0.0, f32::INFINITY);
+                        block.bounces[w * c + i] = [None, Some((specular[i], ray))];
+                    }
+                    mirrored |= mirror << (w * c);
+                }
+                surf.each(&some, bounce & refracts, &mut |i, surface, facing| {
                     preps[w * c + i] = Some(Prepared {
                         surf: surface,
                         d: facing.d,
@@ -1079,7 +1099,7 @@ impl<T: Tracer> Shader<'_, T> {
         for l in lanes_of(lanes) {
             if let Some(p) = &preps[l] {
                 self.bounces(p, depth, &mut block.bounces[l]);
-            } else {
+            } else if mirrored & (1 << l) == 0 {
                 block.bounces[l] = [None; 2];
                 if have & (1 << l) == 0 {
                     block.color[l] = self.env.background;
@@ -1578,6 +1598,18 @@ fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
 #[inline]
 fn reflect(d: Vec3, n: Vec3) -> Vec3 {
     d - 2.0 * d.dot(n) * n
+}
+
+/// [`reflect`] lane by lane: the same operations, the same bits.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+fn reflect_lanes<F: LaneF32>(d: &Lanes<F>, n: &Lanes<F>) -> Lanes<F> {
+    let k = F::splat(2.0) * dot_lanes(d, n);
+    Lanes {
+        x: d.x - k * n.x,
+        y: d.y - k * n.y,
+        z: d.z - k * n.z,
+    }
 }
 
 /// The texture level of detail of four prepared hits on textures `texs`
