@@ -114,8 +114,8 @@ fn an_instance_spanning_many_cells_is_intersected_once_per_ray_and_missed_boxes_
 
 #[test]
 fn instances_whose_boxes_a_ray_misses_do_not_push_a_tested_one_out_of_the_mailbox() {
-    // As above with more balls than mailbox slots (balls 32, 64 and 96
-    // share the floor's slot) and a wall in a corner of the floor, so
+    // As above with more balls than mailbox slots (64: balls 64, 128 and
+    // 192 share the floor's slot) and a wall in a corner of the floor, so
     // that the floor's box holds the balls and is in every cell (the BART
     // robots' city). The ray misses the balls' boxes; were they put in the
     // mailbox as they were met, the floor (tested in the first cell) would
@@ -140,7 +140,7 @@ fn instances_whose_boxes_a_ray_misses_do_not_push_a_tested_one_out_of_the_mailbo
     let ball = ctx.gen_object();
     define_sphere(&mut ctx, ball, 60, 0.0);
     ctx.instantiate(floor).unwrap();
-    let balls = 100;
+    let balls = 200;
     for i in 0..balls {
         ctx.load_matrix(Mat4::from_translation(Vec3::new(
             -45.0 + 90.0 * i as f32 / balls as f32,
