@@ -69,8 +69,11 @@ fn each_object_pays_only_for_what_changed_and_settled_objects_are_promoted() {
     assert_eq!(ctx.object_builder(morphing).unwrap(), Some(BuilderKind::Fast));
 }
 
-#[test]
-fn an_instance_spanning_many_cells_is_intersected_once_per_ray_and_missed_boxes_not_at_all() {
+/// A floor (the square [-50, 50]^2 at y = 0; with `wall`, also a wall
+/// 10 high in a corner, so that the floor's box holds the balls), then
+/// `balls` instances of a ball of `detail` triangles above it in a row along
+/// x, the floor instance first.
+fn floor_and_balls(balls: usize, wall: bool, detail: usize) -> Context {
     let mut ctx = Context::new();
     let floor = ctx.gen_object();
     ctx.begin_object(floor).unwrap();
@@ -78,20 +81,36 @@ fn an_instance_spanning_many_cells_is_intersected_once_per_ray_and_missed_boxes_
     for (x, z) in [(-50.0, -50.0), (50.0, -50.0), (50.0, 50.0), (-50.0, 50.0)] {
         ctx.vertex(Vec3::new(x, 0.0, z)).unwrap();
     }
+    if wall {
+        for (x, y, z) in [
+            (50.0, 0.0, 49.0),
+            (50.0, 0.0, 50.0),
+            (50.0, 10.0, 50.0),
+            (50.0, 10.0, 49.0),
+        ] {
+            ctx.vertex(Vec3::new(x, y, z)).unwrap();
+        }
+    }
     ctx.end().unwrap();
     ctx.end_object().unwrap();
     let ball = ctx.gen_object();
-    define_sphere(&mut ctx, ball, 200, 0.0);
+    define_sphere(&mut ctx, ball, detail, 0.0);
     ctx.instantiate(floor).unwrap();
-    for i in 0..20 {
+    for i in 0..balls {
         ctx.load_matrix(Mat4::from_translation(Vec3::new(
-            -45.0 + 4.5 * i as f32,
+            -45.0 + 90.0 * i as f32 / balls as f32,
             2.0,
             (i % 5) as f32 * 7.0 - 14.0,
         )))
         .unwrap();
         ctx.instantiate(ball).unwrap();
     }
+    ctx
+}
+
+#[test]
+fn an_instance_spanning_many_cells_is_intersected_once_per_ray_and_missed_boxes_not_at_all() {
+    let mut ctx = floor_and_balls(20, false, 200);
     ctx.commit().unwrap();
     let scene = ctx.scene();
     assert!(scene.bsp().nodes().len() > 10, "the floor spans many cells");
@@ -120,36 +139,7 @@ fn instances_whose_boxes_a_ray_misses_do_not_push_a_tested_one_out_of_the_mailbo
     // robots' city). The ray misses the balls' boxes; were they put in the
     // mailbox as they were met, the floor (tested in the first cell) would
     // be pushed out and tested again in the next cell.
-    let mut ctx = Context::new();
-    let floor = ctx.gen_object();
-    ctx.begin_object(floor).unwrap();
-    ctx.begin(PrimitiveKind::Quads).unwrap();
-    for (x, z) in [(-50.0, -50.0), (50.0, -50.0), (50.0, 50.0), (-50.0, 50.0)] {
-        ctx.vertex(Vec3::new(x, 0.0, z)).unwrap();
-    }
-    for (x, y, z) in [
-        (50.0, 0.0, 49.0),
-        (50.0, 0.0, 50.0),
-        (50.0, 10.0, 50.0),
-        (50.0, 10.0, 49.0),
-    ] {
-        ctx.vertex(Vec3::new(x, y, z)).unwrap();
-    }
-    ctx.end().unwrap();
-    ctx.end_object().unwrap();
-    let ball = ctx.gen_object();
-    define_sphere(&mut ctx, ball, 60, 0.0);
-    ctx.instantiate(floor).unwrap();
-    let balls = 200;
-    for i in 0..balls {
-        ctx.load_matrix(Mat4::from_translation(Vec3::new(
-            -45.0 + 90.0 * i as f32 / balls as f32,
-            2.0,
-            (i % 5) as f32 * 7.0 - 14.0,
-        )))
-        .unwrap();
-        ctx.instantiate(ball).unwrap();
-    }
+    let mut ctx = floor_and_balls(200, true, 60);
     ctx.commit().unwrap();
     let scene = ctx.scene();
     let cells = scene
