@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use openrt_accel::BuilderKind;
+use openrt_accel::{Aabb, BuilderKind};
 
 use crate::object::ObjectTree;
 use rayon::prelude::*;
@@ -334,15 +334,21 @@ impl Context {
                         let (a, b) = (p.world_bounds, r.world_bounds);
                         same_bits(a.min.to_array(), b.min.to_array()) && same_bits(a.max.to_array(), b.max.to_array())
                     }));
-        let bsp = if stats.toplevel_reused {
-            Arc::clone(&prev.bsp)
+        let (bsp, globals) = if stats.toplevel_reused {
+            (Arc::clone(&prev.bsp), Arc::clone(&prev.globals))
         } else {
-            let boxes: Vec<_> = records.iter().map(|r| r.world_bounds).collect();
-            Arc::new(
-                self.bsp_builder
-                    .build(&boxes)
-                    .map_err(|source| CoreError::Accel { call: "commit", source })?,
-            )
+            let mut boxes: Vec<_> = records.iter().map(|r| r.world_bounds).collect();
+            // Instances spanning the scene are tested before the walk, not
+            // put in the BSP (an empty box is left out of it).
+            let globals = crate::scene::global_instances(&boxes);
+            for &i in &globals {
+                boxes[i as usize] = Aabb::EMPTY;
+            }
+            let bsp = self
+                .bsp_builder
+                .build(&boxes)
+                .map_err(|source| CoreError::Accel { call: "commit", source })?;
+            (Arc::new(bsp), Arc::new(globals))
         };
         stats.toplevel_ms = t0.elapsed().as_secs_f64() * 1e3;
         stats.toplevel_nodes = bsp.nodes().len();
@@ -382,6 +388,7 @@ impl Context {
         self.scene = Arc::new(Scene {
             instances: records,
             bsp,
+            globals,
             materials,
             textures,
             frame: self.frame,

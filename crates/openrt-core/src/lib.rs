@@ -126,7 +126,7 @@ pub use primitive::PrimitiveKind;
 pub use render::{
     Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, assemble_into, tile_count,
 };
-pub use scene::{Scene, SceneHit, Surface};
+pub use scene::{GLOBAL_AREA_SHARE, MAX_GLOBAL_INSTANCES, Scene, SceneHit, Surface};
 pub use shade::{RayCounts, RenderMode};
 pub use texture::{Texture, TextureFilter, TextureWrap};
 

@@ -4,12 +4,47 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 use openrt_accel::{
-    InstanceBsp, PacketBoxes, PacketInterval, Ray, Triangle, lanes_of, ray_reaches_quad, traverse, traverse_packet,
+    Aabb, InstanceBsp, PacketBoxes, PacketInterval, Ray, Triangle, lanes_of, ray_reaches_quad, traverse,
+    traverse_packet,
 };
 
 use crate::instance::InstanceRecord;
 use crate::occluder_hint::{HINT_MARGIN, OccluderHint};
 use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, Texture};
+
+/// The most instances tested before the top-level walk ([`global_instances`]).
+pub const MAX_GLOBAL_INSTANCES: usize = 4;
+
+/// An instance whose world box has at least this share of the surface area
+/// of the box around all instances is tested before the top-level walk.
+pub const GLOBAL_AREA_SHARE: f32 = 0.5;
+
+/// The instances (indices into `boxes`, in order, at most
+/// [`MAX_GLOBAL_INSTANCES`]) whose world boxes take at least
+/// [`GLOBAL_AREA_SHARE`] of the surface area of the box around all of
+/// them, in a scene of more than `MAX_GLOBAL_INSTANCES` instances: the
+/// ground or the city that every ray may meet. Such a box is in every cell
+/// of the top-level BSP, where it makes cells crowded and a plane rarely
+/// valid (Algorithm 1); tested first, it also gives every ray its
+/// closest hit so far before the walk.
+pub(crate) fn global_instances(boxes: &[Aabb]) -> Vec<u32> {
+    if boxes.len() <= MAX_GLOBAL_INSTANCES {
+        return Vec::new();
+    }
+    let usable = |b: &&Aabb| !b.is_empty() && b.is_finite();
+    let all = boxes.iter().filter(usable).fold(Aabb::EMPTY, |a, b| a.union(*b));
+    let area = all.surface_area();
+    if !(area > 0.0 && area.is_finite()) {
+        return Vec::new();
+    }
+    boxes
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| usable(b) && b.surface_area() >= GLOBAL_AREA_SHARE * area)
+        .take(MAX_GLOBAL_INSTANCES)
+        .map(|(i, _)| i as u32)
+        .collect()
+}
 
 /// Entries of the mailboxes (one per ray, or one per packet with a lane mask
 /// per entry), direct-mapped on the instance index.
@@ -79,6 +114,9 @@ pub struct Scene {
     pub(crate) instances: Arc<Vec<InstanceRecord>>,
     /// Shared with the next frame's scene when no instance box changed.
     pub(crate) bsp: Arc<InstanceBsp>,
+    /// Instances whose world box spans most of the scene ([`global_instances`]),
+    /// tested before the walk and left out of the BSP.
+    pub(crate) globals: Arc<Vec<u32>>,
     pub(crate) materials: Arc<Vec<Material>>,
     pub(crate) textures: Arc<Vec<Arc<Texture>>>,
     pub(crate) frame: u64,
@@ -95,6 +133,33 @@ impl Scene {
     #[must_use]
     pub fn bsp(&self) -> &InstanceBsp {
         &self.bsp
+    }
+
+    /// The instances tested before the top-level walk, left out of its BSP
+    /// ([`MAX_GLOBAL_INSTANCES`], [`GLOBAL_AREA_SHARE`]).
+    #[must_use]
+    pub fn global_instances(&self) -> &[u32] {
+        &self.globals
+    }
+
+    /// Checks the top level: the global instances are those of the
+    /// instances' world boxes, and the BSP holds every other box
+    /// ([`InstanceBsp::validate`]).
+    ///
+    /// # Errors
+    /// The first rule broken, as [`InstanceBsp::validate`] states it.
+    pub fn validate_top_level(&self) -> Result<(), openrt_accel::AccelError> {
+        let mut boxes: Vec<Aabb> = self.instances.iter().map(|i| i.world_bounds).collect();
+        if *self.globals != global_instances(&boxes) {
+            return Err(openrt_accel::AccelError::Invalid(format!(
+                "global instances {:?} are not those of the boxes",
+                self.globals
+            )));
+        }
+        for &i in self.globals.iter() {
+            boxes[i as usize] = Aabb::EMPTY;
+        }
+        self.bsp.validate(&boxes)
     }
 
     /// The material table.
@@ -216,10 +281,16 @@ impl Scene {
     where
         F: FnMut(u32, &InstanceRecord, &mut f32) -> bool,
     {
+        let mut closest = ray.t_max;
+        for &i in self.globals.iter() {
+            let inst = &self.instances[i as usize];
+            if inst.world_bounds.clip(&ray.with_interval(ray.t_min, closest)).is_some() && test(i, inst, &mut closest) {
+                return true;
+            }
+        }
         let Some((t0, t1)) = self.bsp.bounds().clip(ray) else {
             return false;
         };
-        let mut closest = ray.t_max;
         let mut mailbox = [u32::MAX; MAILBOX];
         traverse(self.bsp.nodes(), ray, t0, t1, &mut closest, |leaf, closest| {
             let quads = self.bsp.leaf_box_quads(leaf);
@@ -462,9 +533,17 @@ impl Scene {
         // same layout clips the lanes to the scene box and to the trees of
         // instances without a transform.
         let boxes = PacketBoxes::new(rays, lanes);
-        let (t0, t1, live) = boxes.clip(&self.bsp.bounds(), lanes, &closest);
+        let mut finished = 0u32;
+        for &i in self.globals.iter() {
+            let inst = &self.instances[i as usize];
+            let reach = boxes.reaching(&inst.world_bounds, lanes & !finished, &closest);
+            if reach != 0 {
+                finished |= test(i, inst, reach, &mut closest, &boxes) & reach;
+            }
+        }
+        let (t0, t1, live) = boxes.clip(&self.bsp.bounds(), lanes & !finished, &closest);
         if live == 0 {
-            return 0;
+            return finished;
         }
         // One mailbox for the packet: per slot an instance and the lanes
         // that have met it. Like the per-ray mailbox it only saves work: a
@@ -478,70 +557,71 @@ impl Scene {
         } else {
             None
         };
-        traverse_packet(
-            self.bsp.nodes(),
-            rays,
-            live,
-            &t0,
-            &t1,
-            &mut closest,
-            |leaf, active, closest| {
-                let mut done = 0u32;
-                let items = self.bsp.leaf_items(leaf);
-                let quads = self.bsp.leaf_box_quads(leaf);
-                // The far bound of the lanes here (NaN, if a lane has one,
-                // rejects nothing).
-                let far = if interval.is_some() {
-                    lanes_of(active).fold(f32::NEG_INFINITY, |m, l| {
-                        let t = closest[l];
-                        if t > m || t.is_nan() { t } else { m }
-                    })
-                } else {
-                    f32::NAN
-                };
-                for (q, four) in items.chunks(4).enumerate() {
-                    // Instances whose world box no lane can reach (the
-                    // packet's frustum) are skipped for the whole packet,
-                    // four boxes at a time.
-                    // NOTE: every built tree has its leaves' quads (its
-                    // `validate` checks them); without one nothing is culled.
-                    let rejected = match (frustum, &interval, quads.get(q)) {
-                        (Some(f), _, Some(quad)) => f.rejects_box_quad(quad),
-                        (None, Some(iv), Some(quad)) => iv.rejects_box_quad(quad, far),
-                        _ => 0,
+        finished
+            | traverse_packet(
+                self.bsp.nodes(),
+                rays,
+                live,
+                &t0,
+                &t1,
+                &mut closest,
+                |leaf, active, closest| {
+                    let mut done = 0u32;
+                    let items = self.bsp.leaf_items(leaf);
+                    let quads = self.bsp.leaf_box_quads(leaf);
+                    // The far bound of the lanes here (NaN, if a lane has one,
+                    // rejects nothing).
+                    let far = if interval.is_some() {
+                        lanes_of(active).fold(f32::NEG_INFINITY, |m, l| {
+                            let t = closest[l];
+                            if t > m || t.is_nan() { t } else { m }
+                        })
+                    } else {
+                        f32::NAN
                     };
-                    for (j, &i) in four.iter().enumerate() {
-                        if rejected & (1 << j) != 0 {
-                            continue;
-                        }
-                        let inst = &self.instances[i as usize];
-                        let slot = &mut mailbox[i as usize % MAILBOX];
-                        let met = if slot.0 == i { slot.1 } else { 0 };
-                        let fresh = active & !done & !met;
-                        if fresh == 0 {
-                            continue;
-                        }
-                        let reach = boxes.reaching(&inst.world_bounds, fresh, closest);
-                        if reach == 0 {
-                            continue;
-                        }
-                        // NOTE: the slot changes hands only for an instance
-                        // tested here; one whose box no lane reaches keeps
-                        // out, so that an instance already tested (the
-                        // robots' city, met in every cell) is not pushed
-                        // out and tested again. A lane that misses the
-                        // world box misses the instance anywhere: it is
-                        // marked with the lanes tested.
-                        *slot = (i, met | fresh);
-                        done |= test(i, inst, reach, closest, &boxes) & reach;
-                        if done == active {
-                            return done;
+                    for (q, four) in items.chunks(4).enumerate() {
+                        // Instances whose world box no lane can reach (the
+                        // packet's frustum) are skipped for the whole packet,
+                        // four boxes at a time.
+                        // NOTE: every built tree has its leaves' quads (its
+                        // `validate` checks them); without one nothing is culled.
+                        let rejected = match (frustum, &interval, quads.get(q)) {
+                            (Some(f), _, Some(quad)) => f.rejects_box_quad(quad),
+                            (None, Some(iv), Some(quad)) => iv.rejects_box_quad(quad, far),
+                            _ => 0,
+                        };
+                        for (j, &i) in four.iter().enumerate() {
+                            if rejected & (1 << j) != 0 {
+                                continue;
+                            }
+                            let inst = &self.instances[i as usize];
+                            let slot = &mut mailbox[i as usize % MAILBOX];
+                            let met = if slot.0 == i { slot.1 } else { 0 };
+                            let fresh = active & !done & !met;
+                            if fresh == 0 {
+                                continue;
+                            }
+                            let reach = boxes.reaching(&inst.world_bounds, fresh, closest);
+                            if reach == 0 {
+                                continue;
+                            }
+                            // NOTE: the slot changes hands only for an instance
+                            // tested here; one whose box no lane reaches keeps
+                            // out, so that an instance already tested (the
+                            // robots' city, met in every cell) is not pushed
+                            // out and tested again. A lane that misses the
+                            // world box misses the instance anywhere: it is
+                            // marked with the lanes tested.
+                            *slot = (i, met | fresh);
+                            done |= test(i, inst, reach, closest, &boxes) & reach;
+                            if done == active {
+                                return done;
+                            }
                         }
                     }
-                }
-                done
-            },
-        )
+                    done
+                },
+            )
     }
 
     /// World-space shading information for a hit of `ray`.
@@ -632,5 +712,49 @@ impl Scene {
             }
         }
         (tris, origin)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn cube(at: f32, half: f32) -> Aabb {
+        Aabb {
+            min: Vec3::splat(at - half),
+            max: Vec3::splat(at + half),
+        }
+    }
+
+    #[test]
+    fn boxes_spanning_most_of_the_scene_are_global_up_to_the_limit() {
+        // A ground around eight small boxes: the ground alone.
+        let mut boxes: Vec<Aabb> = (0..8).map(|i| cube(i as f32 * 10.0, 1.0)).collect();
+        boxes.insert(2, cube(35.0, 40.0));
+        assert_eq!(global_instances(&boxes), vec![2]);
+        // Inside the small boxes' span [-1, 71]^3, just over and just under
+        // the share: half sides 26 and 25 (the limit is 25.46).
+        boxes[2] = cube(35.0, 26.0);
+        assert_eq!(global_instances(&boxes), vec![2]);
+        boxes[2] = cube(35.0, 25.0);
+        assert!(global_instances(&boxes).is_empty(), "{:?}", global_instances(&boxes));
+        // Many spanning boxes: the first MAX_GLOBAL_INSTANCES of them.
+        let mut many: Vec<Aabb> = (0..10).map(|_| cube(0.0, 50.0)).collect();
+        many.push(cube(0.0, 1.0));
+        assert_eq!(
+            global_instances(&many),
+            (0..MAX_GLOBAL_INSTANCES as u32).collect::<Vec<_>>()
+        );
+        // Small scenes walk the BSP alone; empty and non-finite boxes are never global.
+        assert!(global_instances(&many[..MAX_GLOBAL_INSTANCES]).is_empty());
+        let mut odd = vec![Aabb::EMPTY; 6];
+        odd[1] = Aabb {
+            min: Vec3::splat(f32::NEG_INFINITY),
+            max: Vec3::splat(f32::INFINITY),
+        };
+        odd[3] = cube(0.0, 1.0);
+        // The one finite box spans all that counts.
+        assert_eq!(global_instances(&odd), vec![3]);
     }
 }

@@ -72,8 +72,10 @@ fn each_object_pays_only_for_what_changed_and_settled_objects_are_promoted() {
 /// A floor (the square [-50, 50]^2 at y = 0; with `wall`, also a wall
 /// 10 high in a corner, so that the floor's box holds the balls), then
 /// `balls` instances of a ball of `detail` triangles above it in a row along
-/// x, the floor instance first.
-fn floor_and_balls(balls: usize, wall: bool, detail: usize) -> Context {
+/// x, the floor instance first; with `far`, one more ball 400 away, so
+/// that the floor's box is not most of the scene's (it is walked in the
+/// BSP, not tested before it: `MAX_GLOBAL_INSTANCES`).
+fn floor_and_balls(balls: usize, wall: bool, detail: usize, far: bool) -> Context {
     let mut ctx = Context::new();
     let floor = ctx.gen_object();
     ctx.begin_object(floor).unwrap();
@@ -105,12 +107,17 @@ fn floor_and_balls(balls: usize, wall: bool, detail: usize) -> Context {
         .unwrap();
         ctx.instantiate(ball).unwrap();
     }
+    if far {
+        ctx.load_matrix(Mat4::from_translation(Vec3::new(400.0, 2.0, 0.0)))
+            .unwrap();
+        ctx.instantiate(ball).unwrap();
+    }
     ctx
 }
 
 #[test]
 fn an_instance_spanning_many_cells_is_intersected_once_per_ray_and_missed_boxes_not_at_all() {
-    let mut ctx = floor_and_balls(20, false, 200);
+    let mut ctx = floor_and_balls(20, false, 200, true);
     ctx.commit().unwrap();
     let scene = ctx.scene();
     assert!(scene.bsp().nodes().len() > 10, "the floor spans many cells");
@@ -139,7 +146,7 @@ fn instances_whose_boxes_a_ray_misses_do_not_push_a_tested_one_out_of_the_mailbo
     // robots' city). The ray misses the balls' boxes; were they put in the
     // mailbox as they were met, the floor (tested in the first cell) would
     // be pushed out and tested again in the next cell.
-    let mut ctx = floor_and_balls(200, true, 60);
+    let mut ctx = floor_and_balls(200, true, 60, true);
     ctx.commit().unwrap();
     let scene = ctx.scene();
     let cells = scene
@@ -158,6 +165,51 @@ fn instances_whose_boxes_a_ray_misses_do_not_push_a_tested_one_out_of_the_mailbo
     for (r, p) in rays.iter().zip(packet) {
         assert_eq!(scene.intersect(r).map(|h| h.t.to_bits()), p.map(|h| h.t.to_bits()));
     }
+}
+
+#[test]
+fn an_instance_spanning_the_scene_is_tested_before_the_walk_with_the_walks_answers() {
+    // The floor with its wall spans the balls' box: tested before the walk,
+    // and in no cell of the BSP.
+    let mut ctx = floor_and_balls(200, true, 60, false);
+    ctx.commit().unwrap();
+    let scene = ctx.scene();
+    let bsp = scene.bsp();
+    assert!(bsp.nodes().len() > 10, "the balls are walked");
+    assert!(
+        bsp.nodes()
+            .iter()
+            .all(|n| !n.is_leaf() || !bsp.leaf_items(*n).contains(&0)),
+        "the floor is in a cell"
+    );
+    // Packets and single rays give the same hits, floor and balls, against
+    // the f64 oracle's instance.
+    let rays = meshgen::camera_rays(Vec3::new(0.0, 30.0, -80.0), Vec3::new(0.0, 0.0, 0.0), 32, 32, 60.0);
+    let (mut floors, mut balls) = (0, 0);
+    for c in rays.chunks_exact(16) {
+        let packet: [Ray; 16] = std::array::from_fn(|l| c[l]);
+        let got = scene.intersect_packet(&packet, 0xFFFF);
+        for (r, p) in packet.iter().zip(got) {
+            let single = scene.intersect(r);
+            assert_eq!(
+                single.map(|h| (h.t.to_bits(), h.instance, h.prim)),
+                p.map(|h| (h.t.to_bits(), h.instance, h.prim))
+            );
+            match single {
+                Some(h) if h.instance == 0 => floors += 1,
+                Some(_) => balls += 1,
+                None => {}
+            }
+            // Any-hit agrees.
+            assert_eq!(scene.occluded(r), single.is_some());
+        }
+    }
+    assert!(floors > 100 && balls > 10, "floor {floors}, balls {balls}");
+    // The floor is tested once per ray that reaches its box.
+    let mut tests = 0;
+    let down = Ray::infinite(Vec3::new(3.0, 20.0, 45.0), Vec3::new(0.0, -1.0, 0.0));
+    let hit = scene.intersect_counted(&down, &mut tests).unwrap();
+    assert_eq!((hit.instance, tests), (0, 1));
 }
 
 /// One triangle of the square [-1, 1]^2 at z = 0: the lower-left half or

@@ -116,10 +116,7 @@ fn animated_scenes_match_the_flattened_oracle_every_frame() {
                 ctx.wait_for_promotions();
             }
             let scene = ctx.scene();
-            scene
-                .bsp()
-                .validate(&scene.instances().iter().map(|i| i.world_bounds).collect::<Vec<_>>())
-                .unwrap();
+            scene.validate_top_level().unwrap();
             let (world, origin) = scene.world_triangles();
             let index_of = |inst: u32, prim: u32| origin.iter().position(|&o| o == (inst, prim)).unwrap() as u32;
             let oracle = BruteForce::new(&world);
