@@ -12,7 +12,7 @@ use crate::instance::InstanceRecord;
 use crate::occluder_hint::{HINT_MARGIN, OccluderHint};
 use crate::{CoreError, InstanceId, Material, MaterialId, ObjectId, Texture};
 
-/// The most instances tested before the top-level walk ([`global_instances`]).
+/// The most instances tested before the top-level walk ([`Scene::global_instances`]).
 pub const MAX_GLOBAL_INSTANCES: usize = 4;
 
 /// An instance whose world box has at least this share of the surface area
