@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use openrt_accel::{Aabb, BuilderKind};
+use openrt_accel::BuilderKind;
 
 use crate::object::ObjectTree;
 use rayon::prelude::*;
@@ -337,13 +337,9 @@ impl Context {
         let (bsp, globals) = if stats.toplevel_reused {
             (Arc::clone(&prev.bsp), Arc::clone(&prev.globals))
         } else {
-            let mut boxes: Vec<_> = records.iter().map(|r| r.world_bounds).collect();
             // Instances spanning the scene are tested before the walk, not
             // put in the BSP (an empty box is left out of it).
-            let globals = crate::scene::global_instances(&boxes);
-            for &i in &globals {
-                boxes[i as usize] = Aabb::EMPTY;
-            }
+            let (boxes, globals) = crate::scene::top_level_boxes(&records);
             let bsp = self
                 .bsp_builder
                 .build(&boxes)

@@ -19,6 +19,17 @@ pub const MAX_GLOBAL_INSTANCES: usize = 4;
 /// of the box around all instances is tested before the top-level walk.
 pub const GLOBAL_AREA_SHARE: f32 = 0.5;
 
+/// The boxes the top-level BSP is built over (the instances' world boxes,
+/// the global ones left out as empty) and the global instances.
+pub(crate) fn top_level_boxes(instances: &[InstanceRecord]) -> (Vec<Aabb>, Vec<u32>) {
+    let mut boxes: Vec<Aabb> = instances.iter().map(|r| r.world_bounds).collect();
+    let globals = global_instances(&boxes);
+    for &i in &globals {
+        boxes[i as usize] = Aabb::EMPTY;
+    }
+    (boxes, globals)
+}
+
 /// The instances (indices into `boxes`, in order, at most
 /// [`MAX_GLOBAL_INSTANCES`]) whose world boxes take at least
 /// [`GLOBAL_AREA_SHARE`] of the surface area of the box around all of
@@ -149,15 +160,12 @@ impl Scene {
     /// # Errors
     /// The first rule broken, as [`InstanceBsp::validate`] states it.
     pub fn validate_top_level(&self) -> Result<(), openrt_accel::AccelError> {
-        let mut boxes: Vec<Aabb> = self.instances.iter().map(|i| i.world_bounds).collect();
-        if *self.globals != global_instances(&boxes) {
+        let (boxes, globals) = top_level_boxes(&self.instances);
+        if *self.globals != globals {
             return Err(openrt_accel::AccelError::Invalid(format!(
-                "global instances {:?} are not those of the boxes",
+                "global instances {:?} are not those of the boxes ({globals:?})",
                 self.globals
             )));
-        }
-        for &i in self.globals.iter() {
-            boxes[i as usize] = Aabb::EMPTY;
         }
         self.bsp.validate(&boxes)
     }
@@ -557,71 +565,71 @@ impl Scene {
         } else {
             None
         };
-        finished
-            | traverse_packet(
-                self.bsp.nodes(),
-                rays,
-                live,
-                &t0,
-                &t1,
-                &mut closest,
-                |leaf, active, closest| {
-                    let mut done = 0u32;
-                    let items = self.bsp.leaf_items(leaf);
-                    let quads = self.bsp.leaf_box_quads(leaf);
-                    // The far bound of the lanes here (NaN, if a lane has one,
-                    // rejects nothing).
-                    let far = if interval.is_some() {
-                        lanes_of(active).fold(f32::NEG_INFINITY, |m, l| {
-                            let t = closest[l];
-                            if t > m || t.is_nan() { t } else { m }
-                        })
-                    } else {
-                        f32::NAN
+        let done = traverse_packet(
+            self.bsp.nodes(),
+            rays,
+            live,
+            &t0,
+            &t1,
+            &mut closest,
+            |leaf, active, closest| {
+                let mut done = 0u32;
+                let items = self.bsp.leaf_items(leaf);
+                let quads = self.bsp.leaf_box_quads(leaf);
+                // The far bound of the lanes here (NaN, if a lane has one,
+                // rejects nothing).
+                let far = if interval.is_some() {
+                    lanes_of(active).fold(f32::NEG_INFINITY, |m, l| {
+                        let t = closest[l];
+                        if t > m || t.is_nan() { t } else { m }
+                    })
+                } else {
+                    f32::NAN
+                };
+                for (q, four) in items.chunks(4).enumerate() {
+                    // Instances whose world box no lane can reach (the
+                    // packet's frustum) are skipped for the whole packet,
+                    // four boxes at a time.
+                    // NOTE: every built tree has its leaves' quads (its
+                    // `validate` checks them); without one nothing is culled.
+                    let rejected = match (frustum, &interval, quads.get(q)) {
+                        (Some(f), _, Some(quad)) => f.rejects_box_quad(quad),
+                        (None, Some(iv), Some(quad)) => iv.rejects_box_quad(quad, far),
+                        _ => 0,
                     };
-                    for (q, four) in items.chunks(4).enumerate() {
-                        // Instances whose world box no lane can reach (the
-                        // packet's frustum) are skipped for the whole packet,
-                        // four boxes at a time.
-                        // NOTE: every built tree has its leaves' quads (its
-                        // `validate` checks them); without one nothing is culled.
-                        let rejected = match (frustum, &interval, quads.get(q)) {
-                            (Some(f), _, Some(quad)) => f.rejects_box_quad(quad),
-                            (None, Some(iv), Some(quad)) => iv.rejects_box_quad(quad, far),
-                            _ => 0,
-                        };
-                        for (j, &i) in four.iter().enumerate() {
-                            if rejected & (1 << j) != 0 {
-                                continue;
-                            }
-                            let inst = &self.instances[i as usize];
-                            let slot = &mut mailbox[i as usize % MAILBOX];
-                            let met = if slot.0 == i { slot.1 } else { 0 };
-                            let fresh = active & !done & !met;
-                            if fresh == 0 {
-                                continue;
-                            }
-                            let reach = boxes.reaching(&inst.world_bounds, fresh, closest);
-                            if reach == 0 {
-                                continue;
-                            }
-                            // NOTE: the slot changes hands only for an instance
-                            // tested here; one whose box no lane reaches keeps
-                            // out, so that an instance already tested (the
-                            // robots' city, met in every cell) is not pushed
-                            // out and tested again. A lane that misses the
-                            // world box misses the instance anywhere: it is
-                            // marked with the lanes tested.
-                            *slot = (i, met | fresh);
-                            done |= test(i, inst, reach, closest, &boxes) & reach;
-                            if done == active {
-                                return done;
-                            }
+                    for (j, &i) in four.iter().enumerate() {
+                        if rejected & (1 << j) != 0 {
+                            continue;
+                        }
+                        let inst = &self.instances[i as usize];
+                        let slot = &mut mailbox[i as usize % MAILBOX];
+                        let met = if slot.0 == i { slot.1 } else { 0 };
+                        let fresh = active & !done & !met;
+                        if fresh == 0 {
+                            continue;
+                        }
+                        let reach = boxes.reaching(&inst.world_bounds, fresh, closest);
+                        if reach == 0 {
+                            continue;
+                        }
+                        // NOTE: the slot changes hands only for an instance
+                        // tested here; one whose box no lane reaches keeps
+                        // out, so that an instance already tested (the
+                        // robots' city, met in every cell) is not pushed
+                        // out and tested again. A lane that misses the
+                        // world box misses the instance anywhere: it is
+                        // marked with the lanes tested.
+                        *slot = (i, met | fresh);
+                        done |= test(i, inst, reach, closest, &boxes) & reach;
+                        if done == active {
+                            return done;
                         }
                     }
-                    done
-                },
-            )
+                }
+                done
+            },
+        );
+        finished | done
     }
 
     /// World-space shading information for a hit of `ray`.
