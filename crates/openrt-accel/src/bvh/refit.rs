@@ -37,40 +37,44 @@ impl Bvh {
         // without; bench rebuild table).
         let parallel = parallel_for(tris.len());
         let same = |(a, b): (&Triangle, &Triangle)| is_valid_triangle(a) == is_valid_triangle(b);
+        // PERF: when the last tree dropped nothing (triangles from the API,
+        // which drops invalid ones), only the new triangles are tested:
+        // half the validity tests.
         let same_validity = tris.len() == prev.tris.len()
-            && if parallel {
-                tris.par_iter().zip(prev.tris.par_iter()).all(same)
-            } else {
-                tris.iter().zip(&prev.tris).all(same)
+            && match (prev.stats.dropped == 0, parallel) {
+                (true, true) => tris.par_iter().all(is_valid_triangle),
+                (true, false) => tris.iter().all(is_valid_triangle),
+                (false, true) => tris.par_iter().zip(prev.tris.par_iter()).all(same),
+                (false, false) => tris.iter().zip(&prev.tris).all(same),
             };
         if !same_validity {
             let mut fresh = Self::build(tris)?;
             fresh.stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
             return Ok(fresh);
         }
-        let mut nodes = prev.nodes.clone();
         let ids = &prev.prim_ids;
-        // Leaf boxes, node by node (in parallel).
-        let leaf_boxes = |chunk: &mut [BvhNode]| {
-            for node in chunk {
-                for i in 0..BVH_WIDTH {
-                    let c = node.child[i];
-                    if c != EMPTY_SLOT && c & LEAF_BIT != 0 {
-                        let off = (c & !LEAF_BIT) as usize;
-                        let n = node.count[i] as usize;
-                        let b = ids[off..off + n]
-                            .iter()
-                            .fold(Aabb::EMPTY, |b, &p| b.union(Aabb::from_points(&tris[p as usize])));
-                        node.set_box(i, &b);
-                    }
+        // Each node copied with its leaf boxes recomputed (in parallel; an
+        // indexed iterator, so `collect` writes the nodes in place).
+        let leaf_boxes = |node: &BvhNode| {
+            let mut node = *node;
+            for i in 0..BVH_WIDTH {
+                let c = node.child[i];
+                if c != EMPTY_SLOT && c & LEAF_BIT != 0 {
+                    let off = (c & !LEAF_BIT) as usize;
+                    let n = node.count[i] as usize;
+                    let b = ids[off..off + n]
+                        .iter()
+                        .fold(Aabb::EMPTY, |b, &p| b.union(Aabb::from_points(&tris[p as usize])));
+                    node.set_box(i, &b);
                 }
             }
+            node
         };
-        if parallel {
-            nodes.par_chunks_mut(CHUNK).for_each(leaf_boxes);
+        let mut nodes: Vec<BvhNode> = if parallel {
+            prev.nodes.par_iter().with_min_len(CHUNK).map(leaf_boxes).collect()
         } else {
-            nodes.chunks_mut(CHUNK).for_each(leaf_boxes);
-        }
+            prev.nodes.iter().map(leaf_boxes).collect()
+        };
         // Interior boxes, children before parents.
         for k in (0..nodes.len()).rev() {
             for i in 0..BVH_WIDTH {
@@ -81,9 +85,13 @@ impl Bvh {
                 }
             }
         }
+        // NOTE: an indexed parallel iterator, so `collect` writes each block
+        // in place (chunks of blocks collected and then concatenated were
+        // copied twice).
         let blocks: Vec<TriBlock> = if parallel {
-            ids.par_chunks(LANES * CHUNK)
-                .flat_map_iter(|c| c.chunks(LANES).map(|b| TriBlock::pack(b, &tris)).collect::<Vec<_>>())
+            ids.par_chunks(LANES)
+                .with_min_len(CHUNK)
+                .map(|b| TriBlock::pack(b, &tris))
                 .collect()
         } else {
             ids.chunks(LANES).map(|b| TriBlock::pack(b, &tris)).collect()

@@ -341,9 +341,28 @@ fn refits_follow_moving_triangles_and_rebuild_when_the_tree_degrades() {
     // A triangle that turns degenerate changes the leaves: rebuilt.
     let mut flat = moved;
     flat[7] = [flat[7][0]; 3];
-    let rebuilt = Bvh::refit(&first, flat, BVH_REFIT_COST_LIMIT).unwrap();
+    let rebuilt = Bvh::refit(&first, flat.clone(), BVH_REFIT_COST_LIMIT).unwrap();
     assert!(!rebuilt.stats().refitted && rebuilt.stats().dropped == 1);
     rebuilt.validate().unwrap();
+    // From a tree that dropped a triangle, both triangle lists are tested:
+    // refitted while the same one stays degenerate, rebuilt when it turns
+    // valid again or when another one turns degenerate instead.
+    let mut still = flat.clone();
+    still[7] = [still[7][0] * 1.01; 3];
+    let kept = Bvh::refit(&rebuilt, still, BVH_REFIT_COST_LIMIT).unwrap();
+    assert!(kept.stats().refitted && kept.stats().dropped == 1);
+    kept.validate().unwrap();
+    let mut healed = flat.clone();
+    healed[7] = tris[7];
+    let again = Bvh::refit(&rebuilt, healed, BVH_REFIT_COST_LIMIT).unwrap();
+    assert!(!again.stats().refitted && again.stats().dropped == 0);
+    again.validate().unwrap();
+    let mut moved_flat = flat;
+    moved_flat[7] = tris[7];
+    moved_flat[8] = [moved_flat[8][1]; 3];
+    let other = Bvh::refit(&rebuilt, moved_flat, BVH_REFIT_COST_LIMIT).unwrap();
+    assert!(!other.stats().refitted && other.stats().dropped == 1);
+    other.validate().unwrap();
 }
 
 #[test]
