@@ -7,7 +7,7 @@ use std::time::Instant;
 use eframe::egui;
 use egui_file_dialog::FileDialog;
 use openrt_accel::BuilderKind;
-use openrt_core::{Accel, Backend, Camera, RenderMode, RenderSettings};
+use openrt_core::{Accel, Backend, Camera, RenderMode, RenderSettings, TopLevel};
 use openrt_scene::GltfAnimation;
 
 use crate::orbit;
@@ -55,6 +55,7 @@ pub struct ViewerApp {
     backend: Backend,
     /// The structure under the objects.
     accel: Accel,
+    top_level: TopLevel,
     threads: usize,
     scale: f32,
     // Statistics.
@@ -104,6 +105,7 @@ impl ViewerApp {
             depth: 3,
             backend: Backend::default(),
             accel: Accel::default(),
+            top_level: TopLevel::default(),
             threads: opts.threads,
             scale: 0.5,
             frames_rendered: 0,
@@ -177,6 +179,7 @@ impl ViewerApp {
             threads: self.threads,
             backend: self.backend,
             accel: self.accel,
+            top_level: self.top_level,
         };
         if self.worker.tx.send(req).is_ok() {
             self.in_flight = true;
@@ -212,6 +215,7 @@ impl ViewerApp {
             match reply {
                 Reply::Opened(info) => {
                     self.accel = info.accel;
+                    self.top_level = info.top_level;
                     self.time = info.time_range.0;
                     self.info = Some(info);
                     self.camera = None;
@@ -471,6 +475,12 @@ impl ViewerApp {
             ui.label("objects");
             for a in [Accel::Kd, Accel::Bvh] {
                 self.dirty |= ui.radio_value(&mut self.accel, a, a.name()).changed();
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("top level");
+            for t in TopLevel::ALL {
+                self.dirty |= ui.radio_value(&mut self.top_level, t, t.name()).changed();
             }
         });
         self.dirty |= ui

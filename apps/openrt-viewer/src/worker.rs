@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use crossbeam::channel::{Receiver, Sender, unbounded};
-use openrt_core::{Accel, Backend, Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer};
+use openrt_core::{Accel, Backend, Camera, CommitStats, FrameStats, Image, RenderSettings, Renderer, TopLevel};
 use openrt_scene::{GltfAnimation, GltfOptions, MotionClasses, ScenePlayer};
 
 /// What the UI asks for.
@@ -23,6 +23,8 @@ pub enum Request {
         backend: Backend,
         /// The structure under the objects (a change rebuilds them).
         accel: Accel,
+        /// The structure over the instances.
+        top_level: TopLevel,
     },
 }
 
@@ -37,6 +39,8 @@ pub struct SceneInfo {
     pub settings: RenderSettings,
     /// The structure the scene file asks for.
     pub accel: Accel,
+    /// The top level the scene file asks for.
+    pub top_level: TopLevel,
     /// The file it came from (`None`: the built-in scene).
     pub path: Option<PathBuf>,
     /// Instances and objects by motion class.
@@ -163,6 +167,7 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                             time_range: p.time_range(),
                             settings: p.settings(),
                             accel: p.ctx().accel(),
+                            top_level: p.ctx().top_level(),
                             path: path.clone(),
                             motion: p.motion_classes(),
                             animations: p.animation_names(),
@@ -181,9 +186,11 @@ fn run(requests: &Receiver<Request>, replies: &Sender<Reply>, repaint: &dyn Fn()
                     threads,
                     backend,
                     accel,
+                    top_level,
                 } => {
                     let Some(p) = player.as_mut() else { continue };
                     p.ctx_mut().set_accel(accel);
+                    p.ctx_mut().set_top_level(top_level);
                     let pool = share_pool(p, &mut renderer, threads).map_err(|e| e.to_string());
                     match (pool, renderer.as_mut()) {
                         (Err(e), _) => Reply::Error(e),

@@ -81,7 +81,7 @@ const MAX_BENCH_FRAMES: usize = 1000;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use openrt_accel::BuilderKind;
-use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter};
+use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, TopLevel};
 use openrt_scene::{GltfAnimation, GltfOptions, ScenePlayer};
 
 #[derive(Parser)]
@@ -157,6 +157,10 @@ struct Quality {
     /// (default: the scene's `accel`, else `kd`).
     #[arg(long)]
     accel: Option<Accel>,
+    /// Top level over the instances: `auto` (the paper's BSP, a BVH from 256 instances), `bsp` or `bvh`;
+    /// the same images (default: the scene's `top_level`, else `auto`).
+    #[arg(long)]
+    top_level: Option<TopLevel>,
 }
 
 #[derive(Subcommand)]
@@ -371,6 +375,9 @@ fn commit_threads(player: &mut ScenePlayer, q: &Quality) -> Result<(), String> {
     if let Some(a) = q.accel.or(q.backend.accel) {
         player.set_accel(a).map_err(|e| e.to_string())?;
     }
+    if let Some(t) = q.top_level {
+        player.ctx_mut().set_top_level(t);
+    }
     player
         .ctx_mut()
         .set_threads(threads(q))
@@ -505,7 +512,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
             let scene = player.ctx().scene();
             let r = stats.rays;
             println!(
-                "{}: t={t} {}x{} {:?} depth {} on {} threads, backend {} over {} objects: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles; {}",
+                "{}: t={t} {}x{} {:?} depth {} on {} threads, backend {} over {} objects under a {} top level: render {:.1} ms, {:.2} Mrays/s (primary {}, shadow {}, reflection {}, refraction {}); commit {:.1} ms; {} instances, {} triangles; {}",
                 output.display(),
                 s.width,
                 s.height,
@@ -514,6 +521,7 @@ fn run(cli: Cli, cluster: Option<&Cluster>) -> Result<(), String> {
                 stats.threads,
                 renderer.backend().name(),
                 player.ctx().accel().name(),
+                scene.top_level().name(),
                 stats.render_ms,
                 stats.mrays_per_s,
                 r.primary,

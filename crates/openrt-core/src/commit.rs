@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use openrt_accel::BuilderKind;
+use openrt_accel::{BuilderKind, InstanceBsp};
 
 use crate::object::ObjectTree;
 use rayon::prelude::*;
@@ -48,13 +48,13 @@ pub struct CommitStats {
     /// tree stays, and the build is not tried again until the object is
     /// redefined.
     pub promotions_failed: Vec<(ObjectId, String)>,
-    /// Top-level BSP rebuild time in milliseconds (or the time to find that
+    /// Top-level rebuild time in milliseconds (or the time to find that
     /// no rebuild was needed).
     pub toplevel_ms: f64,
-    /// The previous frame's top-level BSP was kept: every instance's world
+    /// The previous frame's top level was kept: every instance's world
     /// box was bit-for-bit the same (the tree depends on nothing else).
     pub toplevel_reused: bool,
-    /// Nodes of the top-level BSP.
+    /// Nodes of the top level (the BSP's, or the BVH's wide nodes).
     pub toplevel_nodes: usize,
     /// Instances in the scene.
     pub instances: usize,
@@ -327,27 +327,37 @@ impl Context {
         // NOTE: the BSP is a function of the box list alone (leaf items are
         // indices into it), so an unchanged list, compared bit for bit,
         // keeps the last tree even when objects behind the boxes changed.
-        stats.toplevel_reused = !prev.bsp.nodes().is_empty()
+        stats.toplevel_reused = (!prev.bsp.nodes().is_empty() || prev.tbvh.is_some())
             && (all_kept
                 || prev.instances.len() == records.len()
                     && prev.instances.iter().zip(records.iter()).all(|(p, r)| {
                         let (a, b) = (p.world_bounds, r.world_bounds);
                         same_bits(a.min.to_array(), b.min.to_array()) && same_bits(a.max.to_array(), b.max.to_array())
                     }));
-        let (bsp, globals) = if stats.toplevel_reused {
-            (Arc::clone(&prev.bsp), Arc::clone(&prev.globals))
+        let bvh_top = self.top_level.uses_bvh(records.len());
+        // A kept tree must be of the structure chosen now.
+        stats.toplevel_reused &= prev.tbvh.is_some() == bvh_top;
+        let (bsp, globals, tbvh) = if stats.toplevel_reused {
+            (Arc::clone(&prev.bsp), Arc::clone(&prev.globals), prev.tbvh.clone())
         } else {
             // Instances spanning the scene are tested before the walk, not
             // put in the BSP (an empty box is left out of it).
             let (boxes, globals) = crate::scene::top_level_boxes(&records);
-            let bsp = self
-                .bsp_builder
-                .build(&boxes)
-                .map_err(|source| CoreError::Accel { call: "commit", source })?;
-            (Arc::new(bsp), Arc::new(globals))
+            let accel_error = |source| CoreError::Accel { call: "commit", source };
+            if bvh_top {
+                let tbvh = openrt_accel::InstanceBvh::build(&boxes).map_err(accel_error)?;
+                (
+                    Arc::new(InstanceBsp::default()),
+                    Arc::new(globals),
+                    Some(Arc::new(tbvh)),
+                )
+            } else {
+                let bsp = self.bsp_builder.build(&boxes).map_err(accel_error)?;
+                (Arc::new(bsp), Arc::new(globals), None)
+            }
         };
         stats.toplevel_ms = t0.elapsed().as_secs_f64() * 1e3;
-        stats.toplevel_nodes = bsp.nodes().len();
+        stats.toplevel_nodes = tbvh.as_ref().map_or(bsp.nodes().len(), |t| t.node_count());
         stats.instances = records.len();
 
         // Phase 2 cannot fail: it installs what phase 1 built (the change
@@ -385,6 +395,7 @@ impl Context {
             instances: records,
             bsp,
             globals,
+            tbvh,
             materials,
             textures,
             frame: self.frame,

@@ -215,6 +215,8 @@ pub struct Context {
     pub(crate) refit: bool,
     /// The structure new and redefined objects get ([`Context::set_accel`]).
     pub(crate) accel: crate::Accel,
+    /// The structure over the instances ([`Context::set_top_level`]).
+    pub(crate) top_level: crate::TopLevel,
     /// The pool of the commit, the background builds and the renderers
     /// given it ([`Context::pool`]); `None` only when no thread could be
     /// started (the commit then runs on the calling thread).
@@ -262,6 +264,7 @@ impl Context {
             redefinition_builder: openrt_accel::BuilderKind::Fast,
             refit: true,
             accel: crate::Accel::default(),
+            top_level: crate::TopLevel::default(),
             pool,
             bsp_builder,
             #[cfg(test)]
@@ -327,6 +330,20 @@ impl Context {
     #[must_use]
     pub fn accel(&self) -> crate::Accel {
         self.accel
+    }
+
+    /// The structure over the instances' world boxes from the next commit
+    /// on: the paper's BSP, a BVH, or (the default) the BSP up to
+    /// [`TOP_LEVEL_BVH_MIN`](crate::TOP_LEVEL_BVH_MIN) instances and a BVH
+    /// from there. The images are the same bytes either way.
+    pub fn set_top_level(&mut self, top_level: crate::TopLevel) {
+        self.top_level = top_level;
+    }
+
+    /// The top-level choice ([`Context::set_top_level`]).
+    #[must_use]
+    pub fn top_level(&self) -> crate::TopLevel {
+        self.top_level
     }
 
     /// Gives the context a new pool of `threads` threads

@@ -98,6 +98,7 @@ mod shade;
 mod simd;
 mod surface_lanes;
 mod texture;
+mod top_level;
 mod tracer;
 
 pub use camera::Camera;
@@ -129,6 +130,7 @@ pub use render::{
 pub use scene::{GLOBAL_AREA_SHARE, MAX_GLOBAL_INSTANCES, Scene, SceneHit, Surface};
 pub use shade::{RayCounts, RenderMode};
 pub use texture::{Texture, TextureFilter, TextureWrap};
+pub use top_level::{TOP_LEVEL_BVH_MIN, TopLevel};
 
 /// What a program using the API needs, in one import:
 /// `use openrt_core::prelude::*;` (with `glam`'s vector and matrix types and

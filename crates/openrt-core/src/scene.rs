@@ -128,6 +128,8 @@ pub struct Scene {
     /// Instances whose world box spans most of the scene ([`global_instances`]),
     /// tested before the walk and left out of the BSP.
     pub(crate) globals: Arc<Vec<u32>>,
+    /// The top level as a BVH over the same boxes, walked instead of the BSP.
+    pub(crate) tbvh: Option<Arc<openrt_accel::InstanceBvh>>,
     pub(crate) materials: Arc<Vec<Material>>,
     pub(crate) textures: Arc<Vec<Arc<Texture>>>,
     pub(crate) frame: u64,
@@ -140,10 +142,30 @@ impl Scene {
         &self.instances
     }
 
-    /// The top-level BSP.
+    /// The top-level BSP (empty when the top level is a BVH).
     #[must_use]
     pub fn bsp(&self) -> &InstanceBsp {
         &self.bsp
+    }
+
+    /// The top-level BVH, when the commit chose one ([`crate::TopLevel`]).
+    #[must_use]
+    pub fn instance_bvh(&self) -> Option<&openrt_accel::InstanceBvh> {
+        self.tbvh.as_deref()
+    }
+
+    /// The structure of this frame's top level: [`TopLevel::Bsp`] or
+    /// [`TopLevel::Bvh`].
+    ///
+    /// [`TopLevel::Bsp`]: crate::TopLevel::Bsp
+    /// [`TopLevel::Bvh`]: crate::TopLevel::Bvh
+    #[must_use]
+    pub fn top_level(&self) -> crate::TopLevel {
+        if self.tbvh.is_some() {
+            crate::TopLevel::Bvh
+        } else {
+            crate::TopLevel::Bsp
+        }
     }
 
     /// The instances tested before the top-level walk, left out of its BSP
@@ -154,11 +176,13 @@ impl Scene {
     }
 
     /// Checks the top level: the global instances are those of the
-    /// instances' world boxes, and the BSP holds every other box
-    /// ([`InstanceBsp::validate`]).
+    /// instances' world boxes, and the BSP or the BVH holds every other box
+    /// ([`InstanceBsp::validate`], [`InstanceBvh::validate`]).
     ///
     /// # Errors
-    /// The first rule broken, as [`InstanceBsp::validate`] states it.
+    /// The first rule broken, as the tree's `validate` states it.
+    ///
+    /// [`InstanceBvh::validate`]: openrt_accel::InstanceBvh::validate
     pub fn validate_top_level(&self) -> Result<(), openrt_accel::AccelError> {
         let (boxes, globals) = top_level_boxes(&self.instances);
         if *self.globals != globals {
@@ -167,7 +191,10 @@ impl Scene {
                 self.globals
             )));
         }
-        self.bsp.validate(&boxes)
+        match &self.tbvh {
+            Some(t) => t.validate(&boxes),
+            None => self.bsp.validate(&boxes),
+        }
     }
 
     /// The material table.
@@ -295,6 +322,19 @@ impl Scene {
             if inst.world_bounds.clip(&ray.with_interval(ray.t_min, closest)).is_some() && test(i, inst, &mut closest) {
                 return true;
             }
+        }
+        if let Some(t) = &self.tbvh {
+            return t.walk(ray, &mut closest, |items, quads, closest| {
+                for (four, quad) in items.chunks(4).zip(quads) {
+                    let reach = ray_reaches_quad(quad, ray, *closest);
+                    for (j, &i) in four.iter().enumerate() {
+                        if reach & (1 << j) != 0 && test(i, &self.instances[i as usize], closest) {
+                            return true;
+                        }
+                    }
+                }
+                false
+            });
         }
         let Some((t0, t1)) = self.bsp.bounds().clip(ray) else {
             return false;
@@ -548,6 +588,37 @@ impl Scene {
             if reach != 0 {
                 finished |= test(i, inst, reach, &mut closest, &boxes) & reach;
             }
+        }
+        if let Some(t) = &self.tbvh {
+            let done = t.walk_packet(
+                rays,
+                lanes & !finished,
+                &mut closest,
+                frustum,
+                &boxes,
+                |items, quads, active, closest| {
+                    let mut done = 0u32;
+                    for (four, quad) in items.chunks(4).zip(quads) {
+                        let rejected = frustum.map_or(0, |f| f.rejects_box_quad(quad));
+                        for (j, &i) in four.iter().enumerate() {
+                            if rejected & (1 << j) != 0 {
+                                continue;
+                            }
+                            let inst = &self.instances[i as usize];
+                            let reach = boxes.reaching(&inst.world_bounds, active & !done, closest);
+                            if reach == 0 {
+                                continue;
+                            }
+                            done |= test(i, inst, reach, closest, &boxes) & reach;
+                            if done == active {
+                                return done;
+                            }
+                        }
+                    }
+                    done
+                },
+            );
+            return finished | done;
         }
         let (t0, t1, live) = boxes.clip(&self.bsp.bounds(), lanes & !finished, &closest);
         if live == 0 {

@@ -308,6 +308,7 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
         // Objects already built get the scene's structure at the next commit
         // (deforming ones keep theirs: `GLTF_DEFORMING_ACCEL`).
         player.ctx.set_accel(file.accel);
+        player.ctx.set_top_level(file.top_level);
         return Ok(RonScene::Gltf(Box::new(player)));
     }
     if let Some(b) = &file.bart {
@@ -366,6 +367,7 @@ pub fn load_ron_any(path: &Path) -> Result<RonScene, SceneError> {
         let mut player = AffPlayer::new(scene)?;
         // Objects already built get the scene's structure at the next commit.
         player.ctx.set_accel(file.accel);
+        player.ctx.set_top_level(file.top_level);
         return Ok(RonScene::Bart(Box::new(player)));
     }
     Ok(RonScene::Scene(Box::new(
@@ -590,6 +592,7 @@ impl Builder {
         self.check_limits(f)?;
         let mut ctx = Context::new();
         ctx.set_accel(f.accel);
+        ctx.set_top_level(f.top_level);
         let dir = self.path.parent().unwrap_or(Path::new("."));
         let mut textures = BTreeMap::new();
         for (name, file) in &f.textures {

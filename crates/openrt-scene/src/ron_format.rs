@@ -63,6 +63,11 @@ pub struct SceneFile {
     /// (the same images; `--accel` overrides it).
     #[serde(default)]
     pub accel: openrt_core::Accel,
+    /// (v2) The top level over the instances: `Auto` (default: the BSP,
+    /// a BVH from `TOP_LEVEL_BVH_MIN` instances), `Bsp` or `Bvh` (the same
+    /// images; `--top-level` overrides it).
+    #[serde(default)]
+    pub top_level: openrt_core::TopLevel,
 }
 
 /// (v2) Animation range: `frames` frames evenly spaced from `start` to `end`.

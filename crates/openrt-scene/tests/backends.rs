@@ -17,7 +17,9 @@ use std::sync::Arc;
 
 use openrt_accel::{PacketWidth, Ray, lanes_mask};
 use openrt_core::kernels::{HINT_MARGIN, OccluderHint, offset_ray_origin};
-use openrt_core::{Accel, Backend, Camera, Environment, RenderMode, RenderSettings, Renderer, Scene, SceneHit};
+use openrt_core::{
+    Accel, Backend, Camera, Environment, RenderMode, RenderSettings, Renderer, Scene, SceneHit, TopLevel,
+};
 use openrt_scene::ScenePlayer;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -288,6 +290,26 @@ fn same_bytes(name: &str, player: &mut ScenePlayer, frame: u32) {
             );
         }
         player.ctx_mut().set_accel(Accel::Kd);
+        // The other top level: a BVH over the instances (or the BSP, where
+        // the default took the BVH).
+        let default = player.ctx().scene().top_level();
+        let other = if default == TopLevel::Bvh {
+            TopLevel::Bsp
+        } else {
+            TopLevel::Bvh
+        };
+        player.ctx_mut().set_top_level(other);
+        player.set_time(t).unwrap();
+        assert_eq!(player.ctx().scene().top_level(), other);
+        for backend in [Backend::KdSingle, Backend::Kd] {
+            let got = render(player, t, mode, 2, backend, PacketWidth::W8);
+            assert!(
+                got == want,
+                "{name} frame {frame} {mode:?}: a {} top level with {backend:?} differs",
+                other.name()
+            );
+        }
+        player.ctx_mut().set_top_level(TopLevel::Auto);
         player.set_time(t).unwrap();
     }
 }

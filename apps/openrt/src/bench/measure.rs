@@ -9,7 +9,7 @@ use openrt_accel::oracle::BruteForce;
 use openrt_accel::{BuilderKind, Hit};
 use openrt_accel::{PacketWidth, Ray};
 use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
-use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool};
+use openrt_core::{Accel, Backend, Image, RenderMode, RenderSettings, Renderer, TextureFilter, ThreadPool, TopLevel};
 use openrt_scene::ScenePlayer;
 
 use super::BenchOptions;
@@ -225,6 +225,14 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
     player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
     player.set_time(t).map_err(|e| e.to_string())?;
     let scene = player.ctx().scene();
+    // The same frame under each top level.
+    let mut tops = Vec::new();
+    for top in [TopLevel::Bsp, TopLevel::Bvh] {
+        player.ctx_mut().set_top_level(top);
+        player.set_time(t).map_err(|e| e.to_string())?;
+        tops.push(player.ctx().scene());
+    }
+    player.ctx_mut().set_top_level(TopLevel::Auto);
     // The same frame with BVHs under the instances.
     player.ctx_mut().set_accel(Accel::Bvh);
     player.set_time(t).map_err(|e| e.to_string())?;
@@ -308,6 +316,12 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
             n / time(&mut || single_of(&bvh_scene)) / 1e6,
             n / time(&mut || packet_of(&bvh_scene)) / 1e6,
         );
+        let top = [
+            n / time(&mut || single_of(&tops[0])) / 1e6,
+            n / time(&mut || single_of(&tops[1])) / 1e6,
+            n / time(&mut || packet_of(&tops[0])) / 1e6,
+            n / time(&mut || packet_of(&tops[1])) / 1e6,
+        ];
         #[cfg(not(feature = "embree"))]
         let embree = None;
         #[cfg(feature = "embree")]
@@ -337,6 +351,8 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
             packet: n / packet / 1e6,
             embree,
             bvh,
+            top,
+            top_default: (scene.top_level().name(), scene.instances().len()),
             rays: rays.len(),
         });
     }

@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use openrt_core::Backend;
+use openrt_core::{Backend, TOP_LEVEL_BVH_MIN};
 
 use super::BenchOptions;
 use super::goals;
@@ -18,6 +18,7 @@ pub(super) fn render(o: &BenchOptions, res: &Results, plot: &Result<String, Stri
     let mut md = String::new();
     frame_tables(&mut md, o, res);
     kind_table(&mut md, res);
+    top_level_table(&mut md, res);
     phase_table(&mut md, res);
     // The tables below use the default backend.
     let rows: Vec<&Row> = res.frames.iter().filter(|r| r.backend == Backend::Kd.name()).collect();
@@ -213,6 +214,30 @@ fn kind_table(md: &mut String, res: &Results) {
             md,
             "| {} | {} | {} | {:.2} | {:.2} | {ratio:.2}x | {met} | {em} | {emp} | {vs} | {bs:.2} | {bp:.2} | {bvs} | {bgoal} |",
             k.scene, k.kind, k.rays, k.single, k.packet
+        );
+    }
+}
+
+/// The query table's kd rows under each top level.
+fn top_level_table(md: &mut String, res: &Results) {
+    if res.kinds.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\nThe top level over the instances (the same queries, kd-trees under the instances): the paper's BSP (Algorithm 1) against a four-wide BVH over the instance boxes (`--top-level bsp|bvh`; `auto`, the default, takes the BVH from {TOP_LEVEL_BVH_MIN} instances). The same answers, bit for bit.\n\n| scene | rays | instances | default | kd-single BSP Mrays/s | kd-single BVH Mrays/s | BVH / BSP | kd BSP Mrays/s | kd BVH Mrays/s | BVH / BSP |\n|---|---|---:|---|---:|---:|---:|---:|---:|---:|"
+    );
+    for k in &res.kinds {
+        let [sb, sv, pb, pv] = k.top;
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {sb:.2} | {sv:.2} | {:.2}x | {pb:.2} | {pv:.2} | {:.2}x |",
+            k.scene,
+            k.kind,
+            k.top_default.1,
+            k.top_default.0,
+            sv / sb,
+            pv / pb
         );
     }
 }

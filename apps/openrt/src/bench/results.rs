@@ -45,6 +45,11 @@ pub(super) struct KindRow {
     pub(super) embree: Option<(f64, f64)>,
     /// The same queries with BVHs under the instances: one by one, packets.
     pub(super) bvh: (f64, f64),
+    /// Kd objects under each top level: single rays with the BSP and the
+    /// BVH, then packets with the BSP and the BVH (Mrays/s).
+    pub(super) top: [f64; 4],
+    /// The top level the default (`TopLevel::Auto`) chose, and the instance count.
+    pub(super) top_default: (&'static str, usize),
     pub(super) rays: usize,
 }
 

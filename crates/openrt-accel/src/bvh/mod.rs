@@ -17,6 +17,7 @@
 //! bounding volume hierarchies* (IEEE RT 2008: wide nodes for single rays).
 
 mod build;
+mod instances;
 mod node;
 mod node8;
 mod packet;
@@ -28,6 +29,7 @@ mod walk8;
 use std::time::Instant;
 
 pub use build::BVH_MAX_LEAF;
+pub use instances::{INSTANCE_BVH_MAX, InstanceBvh};
 pub use node::{BVH_MAX_DEPTH, BVH_WIDTH, BvhNode, BvhSlot};
 
 use crate::error::AccelError;
