@@ -304,7 +304,8 @@ impl Scene {
     }
 
     /// The two-level walk shared by both queries: clip to the scene box,
-    /// traverse the top-level BSP front to back, and call `test(index,
+    /// traverse the top-level BSP front to back (or walk the instance BVH,
+    /// where each instance is met once), and call `test(index,
     /// instance, closest)` once per instance per ray (a direct-mapped
     /// mailbox of tested instances: a test repeated after two tested
     /// instances shared a slot finds nothing closer than before),
