@@ -582,13 +582,16 @@ impl Scene {
         // same layout clips the lanes to the scene box and to the trees of
         // instances without a transform.
         let boxes = PacketBoxes::new(rays, lanes);
+        // Instance `i` tested by those of `lanes` that reach its world box:
+        // `None` when none does, else the lanes it finished.
+        let mut enter = |i: u32, lanes: u32, closest: &mut [f32; N]| {
+            let inst = &self.instances[i as usize];
+            let reach = boxes.reaching(&inst.world_bounds, lanes, closest);
+            (reach != 0).then(|| test(i, inst, reach, closest, &boxes) & reach)
+        };
         let mut finished = 0u32;
         for &i in self.globals.iter() {
-            let inst = &self.instances[i as usize];
-            let reach = boxes.reaching(&inst.world_bounds, lanes & !finished, &closest);
-            if reach != 0 {
-                finished |= test(i, inst, reach, &mut closest, &boxes) & reach;
-            }
+            finished |= enter(i, lanes & !finished, &mut closest).unwrap_or(0);
         }
         if let Some(t) = &self.tbvh {
             let done = t.walk_packet(
@@ -605,12 +608,7 @@ impl Scene {
                             if rejected & (1 << j) != 0 {
                                 continue;
                             }
-                            let inst = &self.instances[i as usize];
-                            let reach = boxes.reaching(&inst.world_bounds, active & !done, closest);
-                            if reach == 0 {
-                                continue;
-                            }
-                            done |= test(i, inst, reach, closest, &boxes) & reach;
+                            done |= enter(i, active & !done, closest).unwrap_or(0);
                             if done == active {
                                 return done;
                             }
@@ -673,15 +671,10 @@ impl Scene {
                         if rejected & (1 << j) != 0 {
                             continue;
                         }
-                        let inst = &self.instances[i as usize];
                         let slot = &mut mailbox[i as usize % MAILBOX];
                         let met = if slot.0 == i { slot.1 } else { 0 };
                         let fresh = active & !done & !met;
                         if fresh == 0 {
-                            continue;
-                        }
-                        let reach = boxes.reaching(&inst.world_bounds, fresh, closest);
-                        if reach == 0 {
                             continue;
                         }
                         // NOTE: the slot changes hands only for an instance
@@ -691,10 +684,12 @@ impl Scene {
                         // out and tested again. A lane that misses the
                         // world box misses the instance anywhere: it is
                         // marked with the lanes tested.
-                        *slot = (i, met | fresh);
-                        done |= test(i, inst, reach, closest, &boxes) & reach;
-                        if done == active {
-                            return done;
+                        if let Some(d) = enter(i, fresh, closest) {
+                            *slot = (i, met | fresh);
+                            done |= d;
+                            if done == active {
+                                return done;
+                            }
                         }
                     }
                 }

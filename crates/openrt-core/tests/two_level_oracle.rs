@@ -122,7 +122,7 @@ fn animated_scenes_match_the_flattened_oracle_every_frame() {
             let want = if seed % 2 == 0 { TopLevel::Bsp } else { TopLevel::Bvh };
             assert_eq!(scene.top_level(), want);
             let (world, origin) = scene.world_triangles();
-            let index_of = |inst: u32, prim: u32| origin.iter().position(|&o| o == (inst, prim)).unwrap() as u32;
+            let index_of = |inst: u32, prim: u32| world_index(&origin, inst, prim);
             let oracle = BruteForce::new(&world);
             let bounds = Aabb::new(Vec3::splat(-7.0), Vec3::splat(7.0));
             let mut rays = meshgen::random_rays(500, seed * 100 + frame, bounds);
@@ -137,12 +137,7 @@ fn animated_scenes_match_the_flattened_oracle_every_frame() {
             for (r, ray) in rays.iter().enumerate() {
                 let got = scene.intersect(ray).map(|h| {
                     hits += 1;
-                    Hit {
-                        t: h.t,
-                        prim: index_of(h.instance, h.prim),
-                        b1: h.b1,
-                        b2: h.b2,
-                    }
+                    world_hit(&origin, &h)
                 });
                 oracle
                     .check_closest(ray, got)
@@ -168,6 +163,22 @@ fn animated_scenes_match_the_flattened_oracle_every_frame() {
                 "seed {seed} frame {frame}: {hits} hits is too few to test anything"
             );
         }
+    }
+}
+
+/// The index among the flattened world triangles (`Scene::world_triangles`'
+/// origins) of triangle `prim` of instance `inst`.
+fn world_index(origin: &[(u32, u32)], inst: u32, prim: u32) -> u32 {
+    origin.iter().position(|&o| o == (inst, prim)).unwrap() as u32
+}
+
+/// A scene's hit as the oracle over the flattened triangles names it.
+fn world_hit(origin: &[(u32, u32)], h: &openrt_core::SceneHit) -> Hit {
+    Hit {
+        t: h.t,
+        prim: world_index(origin, h.instance, h.prim),
+        b1: h.b1,
+        b2: h.b2,
     }
 }
 
@@ -231,7 +242,6 @@ fn the_bvh_and_bsp_top_levels_give_the_same_answers() {
     s1.validate_top_level().unwrap();
     let (world, origin) = s1.world_triangles();
     let oracle = BruteForce::new(&world);
-    let index_of = |inst: u32, prim: u32| origin.iter().position(|&o| o == (inst, prim)).unwrap() as u32;
     let bounds = Aabb::new(Vec3::new(-22.0, -22.0, -5.0), Vec3::new(22.0, 22.0, 5.0));
     let mut rays = meshgen::random_rays(1600, 5, bounds);
     rays.extend(meshgen::camera_rays(
@@ -253,12 +263,7 @@ fn the_bvh_and_bsp_top_levels_give_the_same_answers() {
         assert_eq!(hit_bits(a), hit_bits(b), "ray {r}");
         hits += usize::from(b.is_some());
         if r % 4 == 0 {
-            let got = b.map(|h| Hit {
-                t: h.t,
-                prim: index_of(h.instance, h.prim),
-                b1: h.b1,
-                b2: h.b2,
-            });
+            let got = b.map(|h| world_hit(&origin, &h));
             oracle
                 .check_closest(ray, got)
                 .unwrap_or_else(|e| panic!("ray {r}: {e}"));
