@@ -157,7 +157,7 @@ struct Quality {
     /// (default: the scene's `accel`, else `kd`).
     #[arg(long)]
     accel: Option<Accel>,
-    /// Top level over the instances: `auto` (the paper's BSP, a BVH from 256 instances), `bsp` or `bvh`;
+    /// Top level over the instances: `auto` (the paper's BSP, a BVH from 64 instances), `bsp` or `bvh`;
     /// the same images (default: the scene's `top_level`, else `auto`).
     #[arg(long)]
     top_level: Option<TopLevel>,

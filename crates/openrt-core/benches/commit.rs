@@ -99,7 +99,8 @@ fn summary() {
             bsp.references() as f64 / n as f64
         );
     }
-    commit_summary();
+    commit_summary(openrt_core::TopLevel::Bsp);
+    commit_summary(openrt_core::TopLevel::Bvh);
     println!(
         "\n{:>7} {:>6} {:>9} {:>9} {:>7} {:>10}",
         "tris", "build", "ms", "Mtris/s", "depth", "trace Mr/s"
@@ -127,12 +128,13 @@ fn summary() {
     }
 }
 
-/// Whole commits of a 10k-instance crowd (one small object): all moved
-/// versus none moved, interleaved, medians of 15.
-fn commit_summary() {
+/// Whole commits of a 10k-instance crowd (one small object) under the
+/// `level` top level: all moved versus none moved, interleaved, medians of 15.
+fn commit_summary(level: openrt_core::TopLevel) {
     use openrt_core::{Context, PrimitiveKind};
     let n = 10_000;
     let mut ctx = Context::new();
+    ctx.set_top_level(level);
     let obj = ctx.gen_object();
     ctx.begin_object(obj).unwrap();
     ctx.begin(PrimitiveKind::Triangles).unwrap();
@@ -173,7 +175,8 @@ fn commit_summary() {
         v[v.len() / 2]
     };
     println!(
-        "\ncommit of {n} instances: all moved {:.3} ms (top level {:.3} ms), none moved {:.3} ms (top level kept)",
+        "\ncommit of {n} instances, {} top level: all moved {:.3} ms (top level {:.3} ms), none moved {:.3} ms (top level kept)",
+        level.name(),
         med(moved),
         med(top),
         med(still)

@@ -3,12 +3,13 @@
 
 /// Instances from which [`TopLevel::Auto`] builds a BVH top level.
 ///
-/// PERF: `packet_queries`, BVH against BSP top level, kd objects: terrain
-/// (662 instances) primary packets 0.90, single rays 0.73, shadows 0.90 of
-/// the time; robots (161) packets 0.98, single rays 1.06; kitchen (6) and
-/// museum1k (2) packets and shadows 0.96-1.00, single rays 1.11-1.14 (a node
-/// test per ray against the BSP's single leaf).
-pub const TOP_LEVEL_BVH_MIN: usize = 256;
+/// PERF: BVH against BSP top level, kd objects, the default backend's
+/// packets: terrain (662 instances) frames 0.93-0.96 of the time (queries:
+/// primary packets 0.90, single rays 0.73); robots (161) frames 0.97
+/// GL-like, 0.996 Whitted (single rays 1.03-1.06); kitchen (6) GL-like
+/// 1.00, Whitted 1.007, and museum1k (2) 0.98, but single rays there take
+/// 1.11-1.14 (a node test per ray against the BSP's single leaf).
+pub const TOP_LEVEL_BVH_MIN: usize = 64;
 
 /// The structure over the instances' world boxes, rebuilt by every commit
 /// in which a box moved ([`crate::Context::set_top_level`]). Both find the

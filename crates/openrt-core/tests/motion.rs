@@ -77,6 +77,8 @@ fn each_object_pays_only_for_what_changed_and_settled_objects_are_promoted() {
 /// BSP, not tested before it: `MAX_GLOBAL_INSTANCES`).
 fn floor_and_balls(balls: usize, wall: bool, detail: usize, far: bool) -> Context {
     let mut ctx = Context::new();
+    // The BSP's cells and mailbox are what these tests are about.
+    ctx.set_top_level(openrt_core::TopLevel::Bsp);
     let floor = ctx.gen_object();
     ctx.begin_object(floor).unwrap();
     ctx.begin(PrimitiveKind::Quads).unwrap();

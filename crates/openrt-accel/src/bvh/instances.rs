@@ -120,8 +120,11 @@ impl InstanceBvh {
                 let (off, n) = ((c & !LEAF_BIT) as usize, node.count[i] as usize);
                 node.child[i] = LEAF_BIT | items.len() as u32;
                 for four in ids[off..off + n].chunks(4) {
-                    let b: Vec<Aabb> = four.iter().map(|&k| boxes[k as usize]).collect();
-                    quads.push(BoxQuad::pack(&b));
+                    let mut b = [Aabb::EMPTY; 4];
+                    for (slot, &k) in b.iter_mut().zip(four) {
+                        *slot = boxes[k as usize];
+                    }
+                    quads.push(BoxQuad::pack(&b[..four.len()]));
                     items.extend_from_slice(four);
                     items.resize(items.len() + 4 - four.len(), four[four.len() - 1]);
                 }
