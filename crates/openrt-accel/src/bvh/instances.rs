@@ -2,9 +2,10 @@
 //! paper's BSP (`toplevel/bsp.rs`).
 //!
 //! The object BVH's builder (binned SAH grown into four-wide nodes) over
-//! the instances' world boxes; a leaf holds up to a few instances, their
-//! boxes laid out four to a [`BoxQuad`] for the caller's per-instance
-//! test. Each instance sits in exactly one leaf, so a walk meets it at
+//! the instances' world boxes; a leaf holds one instance (two where the
+//! builder's leaf held more than four), its box laid out in a [`BoxQuad`]
+//! for the caller's per-instance test. The extra level stays far below
+//! `BVH_MAX_DEPTH` (SAH splits to depth 32, then median splits). Each instance sits in exactly one leaf, so a walk meets it at
 //! most once (no mailbox). Single rays walk it with the object BVH's node
 //! test (`walk.rs`), packets with its packet walk (`packet.rs`: first
 //! active lane, frustum or interval culling), lanes with a zero direction
@@ -84,8 +85,8 @@ impl InstanceBvh {
         let ids: Vec<u32> = refs.iter().map(Ref::id).collect();
         // Leaves of several instances become nodes of single instances (of
         // two, past four), so that the node test orders them front to back
-        // and culls each: a leaf's instances tested in index order left
-        // the far one tested first (museum1k single rays 1.1x the time).
+        // and culls each (tested in index order, terrain primary packets
+        // took 204 ms against 199).
         for k in 0..nodes.len() {
             for i in 0..BVH_WIDTH {
                 let (c, n) = (nodes[k].child[i], nodes[k].count[i] as usize);
