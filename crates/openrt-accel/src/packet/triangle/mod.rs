@@ -17,7 +17,8 @@
 //! (a ray through an edge or a vertex): the scalar kernel recomputes those in
 //! f64 and applies its tie rule, so such lanes are handed back to it
 //! ([`LaneHits::edge`], [`LaneHits::settle_edges`]). Tested against the
-//! scalar kernel in this module.
+//! scalar kernel in this module. On CPUs with AVX2 the leaf loop runs the
+//! same test eight lanes to a register (`avx2.rs`, bit for bit this one's).
 
 use wide::f32x4;
 
@@ -27,6 +28,9 @@ use crate::geom::tri_block::TriBlock;
 use crate::geom::triangle::Triangle;
 use crate::geom::triangle::intersect_triangle;
 use crate::packet::width::MAX_LANES;
+
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 
 /// Lanes per SIMD chunk (one SSE register of `f32`).
 const CHUNK: usize = 4;
@@ -67,6 +71,19 @@ pub(crate) struct LaneHits {
 }
 
 impl LaneHits {
+    /// No lane hit, no lane on an edge: what a kernel starts from.
+    #[inline]
+    fn none() -> Self {
+        let zero = f32x4::ZERO;
+        Self {
+            hit: 0,
+            edge: 0,
+            t: [zero; MAX_CHUNKS],
+            b1: [zero; MAX_CHUNKS],
+            b2: [zero; MAX_CHUNKS],
+        }
+    }
+
     /// Lane `l`'s `(t, b1, b2)`, meaningful for the lanes of `hit`.
     #[inline]
     pub(crate) fn lane(&self, l: usize) -> (f32, f32, f32) {
@@ -245,13 +262,7 @@ impl<const N: usize> PacketBlockRay<N> {
     #[inline(always)]
     fn intersect_permuted(&self, tr: &Permuted, lanes: u32, t_max: &[f32; N]) -> LaneHits {
         let zero = f32x4::ZERO;
-        let mut out = LaneHits {
-            hit: 0,
-            edge: 0,
-            t: [zero; MAX_CHUNKS],
-            b1: [zero; MAX_CHUNKS],
-            b2: [zero; MAX_CHUNKS],
-        };
+        let mut out = LaneHits::none();
         for k in 0..N / CHUNK {
             let chunk_lanes = (lanes >> (k * CHUNK)) & CHUNK_MASK;
             if chunk_lanes == 0 {
@@ -341,7 +352,26 @@ mod tests {
         x.map(|(a, b, c)| (a.to_bits(), b.to_bits(), c.to_bits()))
     }
 
-    /// Checks every lane of `rays` against `tri` with the scalar kernel.
+    /// The AVX2 kernel's answer, `None` on a CPU without AVX2.
+    #[allow(clippy::unnecessary_wraps)]
+    fn intersect_block8(
+        p: &PacketBlockRay<N>,
+        block: &TriBlock,
+        j: usize,
+        lanes: u32,
+        t_max: &[f32; N],
+    ) -> Option<LaneHits> {
+        #[cfg(target_arch = "x86_64")]
+        if crate::packet::width::avx2() {
+            // SAFETY: the CPU has AVX2 and `N` is sixteen.
+            return Some(unsafe { p.intersect_block8(block, j, lanes, t_max) });
+        }
+        let _ = (p, block, j, lanes, t_max);
+        None
+    }
+
+    /// Checks every lane of `rays` against `tri` with the scalar kernel,
+    /// and the AVX2 kernel against the four-lane one.
     fn check(rays: &[Ray; N], tri: &Triangle, t_max: &[f32; N]) -> (u32, u32) {
         let p = PacketBlockRay::new(rays, u32::MAX >> (32 - N)).expect("one permutation");
         let all = u32::MAX >> (32 - N);
@@ -357,6 +387,22 @@ mod tests {
             assert_eq!((b.hit, b.edge), (h.hit, h.edge), "block lane {j}");
             for l in crate::packet::width::lanes_of(h.hit) {
                 assert_eq!(bits(Some(b.lane(l))), bits(Some(h.lane(l))), "block lane {j}, lane {l}");
+            }
+            // The AVX2 copy: the four-lane kernel's answer, whole and on
+            // parts of the lanes (whole registers skipped, others masked).
+            for part in [all, 0x00F0, 0x0F0F & !0x0102, 0x8001, 0xFF00] {
+                let want = p.intersect_block(&block, j, part, t_max);
+                let Some(got) = intersect_block8(&p, &block, j, part, t_max) else {
+                    break;
+                };
+                assert_eq!(
+                    (got.hit, got.edge),
+                    (want.hit, want.edge),
+                    "AVX2, block lane {j}, lanes {part:#x}"
+                );
+                for l in crate::packet::width::lanes_of(want.hit) {
+                    assert_eq!(bits(Some(got.lane(l))), bits(Some(want.lane(l))), "AVX2, lane {l}");
+                }
             }
         }
         // A part of the lanes (whole chunks skipped, others partly
