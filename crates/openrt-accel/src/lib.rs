@@ -44,7 +44,7 @@ mod toplevel;
 
 pub use bvh::{
     BVH_MAX_DEPTH, BVH_MAX_LEAF, BVH_MAX_PRIMITIVES, BVH_REFIT_COST_LIMIT, BVH_WIDTH, Bvh, BvhNode, BvhSlot, BvhStats,
-    INSTANCE_BVH_MAX, InstanceBvh,
+    INSTANCE_BVH_MAX, INSTANCE_BVH_POOL_MIN, INSTANCE_BVH_TASK_MIN, InstanceBvh,
 };
 pub use error::AccelError;
 pub use geom::aabb::Aabb;

@@ -345,7 +345,12 @@ impl Context {
             let (boxes, globals) = crate::scene::top_level_boxes(&records);
             let accel_error = |source| CoreError::Accel { call: "commit", source };
             if bvh_top {
-                let tbvh = openrt_accel::InstanceBvh::build(&boxes).map_err(accel_error)?;
+                // On the BSP builder's threads: a large tree's subtrees are
+                // tasks of that pool (the same tree on any thread count).
+                let tbvh = self
+                    .bsp_builder
+                    .install(|| openrt_accel::InstanceBvh::build(&boxes))
+                    .map_err(accel_error)?;
                 (
                     Arc::new(InstanceBsp::default()),
                     Arc::new(globals),

@@ -403,26 +403,29 @@ fn grow(refs: &mut [Ref], bounds: Aabb, centres: Option<Box3A>, depth: usize) ->
 /// Builds the subtree of `refs` (whose first entry is entry `base` of the
 /// whole array) into `nodes`, its root first; leaves hold
 /// `LEAF_BIT | (base + start)` for now. `centres` bounds the box centres
-/// when the parent's split found them. Returns the deepest wide level.
+/// when the parent's split found them. Where two or more interior children
+/// hold at least `task_min` references each, they are built as tasks of
+/// the current rayon pool (`usize::MAX`: never), their nodes appended after
+/// in child order: the same tree on any number of threads. Returns the
+/// deepest wide level.
 pub(crate) fn build_into(
     refs: &mut [Ref],
     base: usize,
     bounds: Aabb,
     centres: Option<Box3A>,
     depth: usize,
-    parallel: bool,
+    task_min: usize,
     nodes: &mut Vec<BvhNode>,
 ) -> usize {
     let me = nodes.len();
     nodes.push(BvhNode::empty());
     let (kids, n) = grow(refs, bounds, centres, depth);
     let mut deepest = depth + 1;
-    let big = parallel
-        && kids[..n]
-            .iter()
-            .filter(|k| !k.leaf && k.end - k.start >= crate::kd::fast_build::PARALLEL_MIN)
-            .count()
-            > 1;
+    let big = kids[..n]
+        .iter()
+        .filter(|k| !k.leaf && k.end - k.start >= task_min)
+        .count()
+        > 1;
     if big {
         // The interior children as tasks, each into its own array,
         // appended after with their indices moved.
@@ -446,7 +449,7 @@ pub(crate) fn build_into(
                 .map(|(i, mine)| {
                     let k = kids[i];
                     let mut sub = Vec::new();
-                    let d = build_into(mine, base + k.start, k.bounds, k.centres, depth + 1, parallel, &mut sub);
+                    let d = build_into(mine, base + k.start, k.bounds, k.centres, depth + 1, task_min, &mut sub);
                     (i, sub, d)
                 })
                 .collect()
@@ -488,7 +491,7 @@ pub(crate) fn build_into(
                 k.bounds,
                 k.centres,
                 depth + 1,
-                parallel,
+                task_min,
                 nodes,
             );
             deepest = deepest.max(d);

@@ -30,6 +30,16 @@ use crate::packet::width::lanes_of;
 /// Most instances an [`InstanceBvh`] takes (leaf offsets stay below bit 31).
 pub const INSTANCE_BVH_MAX: usize = 1 << 26;
 
+/// Instances from which [`InstanceBvh::build`], called on a rayon pool's
+/// thread, builds subtrees as tasks of that pool.
+// PERF: below it the tasks' hand-over costs more than the second thread
+// saves.
+pub const INSTANCE_BVH_POOL_MIN: usize = 2048;
+
+/// Instances in a subtree built as a task of its own (see
+/// [`INSTANCE_BVH_POOL_MIN`]).
+pub const INSTANCE_BVH_TASK_MIN: usize = 512;
+
 /// Refuses more than [`INSTANCE_BVH_MAX`] instances.
 fn check_count(count: usize) -> Result<(), AccelError> {
     if count > INSTANCE_BVH_MAX {
@@ -55,7 +65,10 @@ pub struct InstanceBvh {
 
 impl InstanceBvh {
     /// The BVH of `boxes` (instance `i` has box `boxes[i]`); empty and
-    /// non-finite boxes are left out (an instance no ray can reach).
+    /// non-finite boxes are left out (an instance no ray can reach). On a
+    /// rayon pool's thread, from [`INSTANCE_BVH_POOL_MIN`] boxes, subtrees
+    /// are built as tasks of that pool (the same tree on any number of its
+    /// threads).
     ///
     /// # Errors
     /// [`AccelError::TooManyPrimitives`] past [`INSTANCE_BVH_MAX`] boxes.
@@ -80,7 +93,13 @@ impl InstanceBvh {
         let bounds = bounds_of(&refs);
         let mut nodes = Vec::with_capacity(refs.len() / 2 + 1);
         if !refs.is_empty() {
-            build_into(&mut refs, 0, bounds, None, 0, false, &mut nodes);
+            // Large trees on a pool's thread: subtrees as its tasks.
+            let task_min = if refs.len() >= INSTANCE_BVH_POOL_MIN && rayon::current_thread_index().is_some() {
+                INSTANCE_BVH_TASK_MIN
+            } else {
+                usize::MAX
+            };
+            build_into(&mut refs, 0, bounds, None, 0, task_min, &mut nodes);
         }
         let ids: Vec<u32> = refs.iter().map(Ref::id).collect();
         // Leaves of several instances become nodes of single instances (of
@@ -370,6 +389,26 @@ mod tests {
                 moved[5] = Aabb::new(Vec3::splat(50.0), Vec3::splat(51.0));
                 assert!(t.validate(&moved).is_err(), "{n} boxes");
             }
+        }
+    }
+
+    #[test]
+    fn large_trees_built_on_a_pool_are_the_same_on_any_thread_count() {
+        let all = boxes(3 * INSTANCE_BVH_POOL_MIN, 17);
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let t = pool.install(|| InstanceBvh::build(&all)).unwrap();
+            t.validate(&all).unwrap();
+            t
+        };
+        let layout = |t: &InstanceBvh| format!("{:?} {:?}", t.nodes, t.items);
+        let one = on(1);
+        // Subtrees appended in child order: the depth-first layout of the
+        // build off the pool, on any number of threads.
+        let serial = layout(&InstanceBvh::build(&all).unwrap());
+        assert!(layout(&one) == serial, "one thread: another tree");
+        for threads in [2, 3] {
+            assert!(layout(&on(threads)) == serial, "{threads} threads: another tree");
         }
     }
 

@@ -29,7 +29,7 @@ mod walk8;
 use std::time::Instant;
 
 pub use build::BVH_MAX_LEAF;
-pub use instances::{INSTANCE_BVH_MAX, InstanceBvh};
+pub use instances::{INSTANCE_BVH_MAX, INSTANCE_BVH_POOL_MIN, INSTANCE_BVH_TASK_MIN, InstanceBvh};
 pub use node::{BVH_MAX_DEPTH, BVH_WIDTH, BvhNode, BvhSlot};
 
 use crate::error::AccelError;
@@ -215,8 +215,12 @@ impl Bvh {
         let mut nodes = Vec::with_capacity(refs.len() / 2 + 1);
         let mut depth = 0;
         if !refs.is_empty() {
-            let parallel = rayon::current_thread_index().is_some();
-            depth = build_into(&mut refs, 0, bounds, None, 0, parallel, &mut nodes);
+            let task_min = if rayon::current_thread_index().is_some() {
+                crate::kd::fast_build::PARALLEL_MIN
+            } else {
+                usize::MAX
+            };
+            depth = build_into(&mut refs, 0, bounds, None, 0, task_min, &mut nodes);
         }
         let valid = refs.len();
         let ids: Vec<u32> = refs.iter().map(Ref::id).collect();
