@@ -188,6 +188,9 @@ pub(crate) struct Fast<'b> {
     /// interior node, a test per reference for a leaf, at the costs of
     /// [`KdTree::sah_cost`](crate::KdTree::sah_cost)).
     pub(crate) cost: f64,
+    /// Item lists of finished leaves, given back for the next partitions'
+    /// right lists (no allocation, no zeroing per partition).
+    spare: Vec<Vec<u32>>,
 }
 
 impl<'b> Fast<'b> {
@@ -201,6 +204,7 @@ impl<'b> Fast<'b> {
             max_depth: ((default_max_depth(count) as f32 * params.depth_factor) as usize).min(MAX_DEPTH - 1),
             depth_reached: 0,
             cost: 0.0,
+            spare: Vec::new(),
         }
     }
 
@@ -214,6 +218,7 @@ impl<'b> Fast<'b> {
             max_depth: self.max_depth,
             depth_reached: 0,
             cost: 0.0,
+            spare: Vec::new(),
         }
     }
 
@@ -254,6 +259,14 @@ impl<'b> Fast<'b> {
         self.prim_ids.extend_from_slice(items);
         self.nodes.push(KdNode::leaf(offset as u32, items.len() as u32));
         Ok(())
+    }
+
+    /// [`Self::leaf`] of a list the builder is done with: the list is kept
+    /// for a later partition.
+    fn leaf_of(&mut self, cell: &Aabb, items: Vec<u32>) -> Result<(), AccelError> {
+        let made = self.leaf(cell, &items);
+        self.spare.push(items);
+        made
     }
 
     /// The split of a node: `None` makes a leaf.
@@ -319,7 +332,7 @@ impl<'b> Fast<'b> {
     /// own box does (and starts at or above it likewise).
     #[allow(clippy::type_complexity)]
     pub(crate) fn partition(
-        &self,
+        &mut self,
         cell: &Aabb,
         items: Vec<u32>,
         axis: usize,
@@ -338,7 +351,13 @@ impl<'b> Fast<'b> {
         // less than the misprediction). The left list takes the input's
         // place (each id read gives at most one left id, written at or
         // before the read position).
-        let mut right = vec![0u32; n];
+        // PERF: the right list is a finished leaf's list when there is one,
+        // written without zeroing it first (refits of a 4k-triangle sphere
+        // 0.93 of the time with a fresh zeroed list each, 16k 0.88-0.92).
+        let mut right = self.spare.pop().unwrap_or_default();
+        right.clear();
+        right.reserve(n);
+        let slots = &mut right.spare_capacity_mut()[..n];
         let mut items = items;
         let (mut w, mut r, mut both) = (0usize, 0usize, 0usize);
         for k in 0..n {
@@ -347,17 +366,21 @@ impl<'b> Fast<'b> {
             let left = lo < split || hi <= split;
             let above = hi > split;
             items[w] = id;
-            right[r] = id;
+            slots[r].write(id);
             w += usize::from(left);
             r += usize::from(above);
             both += usize::from(left & above);
         }
         if both == n {
             // Every item straddles: each was written over itself.
+            self.spare.push(right);
             return Err(items);
         }
+        // SAFETY: `r` never passes `k` at the write of step `k` and moves
+        // only past a slot just written, so the first `r` slots (within the
+        // capacity reserved above) hold ids.
+        unsafe { right.set_len(r) };
         items.truncate(w);
-        right.truncate(r);
         Ok((lcell, items, rcell, right))
     }
 
@@ -365,7 +388,7 @@ impl<'b> Fast<'b> {
     pub(crate) fn split(&mut self, cell: &Aabb, items: Vec<u32>, depth: usize) -> Result<Option<Split>, AccelError> {
         self.depth_reached = self.depth_reached.max(depth);
         let Some((axis, split)) = self.plan(cell, &items, depth) else {
-            return self.leaf(cell, &items).map(|()| None);
+            return self.leaf_of(cell, items).map(|()| None);
         };
         match self.partition(cell, items, axis, split) {
             Ok((lcell, left, rcell, right)) => Ok(Some(Split {
@@ -376,7 +399,7 @@ impl<'b> Fast<'b> {
                 rcell,
                 right,
             })),
-            Err(items) => self.leaf(cell, &items).map(|()| None),
+            Err(items) => self.leaf_of(cell, items).map(|()| None),
         }
     }
 
@@ -525,7 +548,14 @@ mod tests {
                 rng.random_range(1.5..8.5)
             };
             let boxes = Boxes::of(&items.iter().map(|i| i.1).collect::<Vec<_>>());
-            let b = Fast::new(&FastParams::default(), &boxes, n);
+            let mut b = Fast::new(&FastParams::default(), &boxes, n);
+            // A finished leaf's list, shorter or longer than the node's,
+            // makes the right list in some rounds: its old ids never show.
+            match round % 3 {
+                1 => b.spare.push(vec![u32::MAX; 3]),
+                2 => b.spare.push(vec![u32::MAX; 2 * n + 7]),
+                _ => {}
+            }
             let (l, r, both) = plain(&cell, &items, axis, split);
             match b.partition(&cell, ids(&items), axis, split) {
                 Ok((lcell, left, rcell, right)) => {
@@ -549,7 +579,7 @@ mod tests {
         // level (the plain partition above), hold the same ids.
         let tris = crate::testing::meshgen::bumpy_sphere(3_000, 3, 0.4);
         let (items, boxes, bounds) = items_of(&tris).unwrap();
-        let fast = Fast::new(&FastParams::default(), &boxes, items.len());
+        let mut fast = Fast::new(&FastParams::default(), &boxes, items.len());
         let mut clipped: Vec<(u32, Aabb)> = items
             .iter()
             .map(|&i| (i, Aabb::from_points(&tris[i as usize])))
