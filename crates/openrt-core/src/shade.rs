@@ -676,7 +676,7 @@ impl<T: Tracer> Shader<'_, T> {
             let got = crate::texture::trilinear_lanes(texs, preps4.map(|p| p.surf.uv), lod);
             for (i, x) in four.iter().enumerate() {
                 if x.is_some() {
-                    texels[4 * c + i] = got[i];
+                    texels[4 * c + i] = got[i].into();
                 }
             }
         }
@@ -1201,7 +1201,18 @@ impl<T: Tracer> Shader<'_, T> {
         const M: usize = MAX_SURFACE_LANES;
         let scene = self.scene;
         let mat = |i: usize| surf.found[i].map(|(_, _, m)| &scene.materials()[m.index() as usize]);
-        let tex_of = |i: usize| mat(i)?.texture.and_then(|t| scene.textures().get(t.index() as usize));
+        // PERF: each lane's texture looked up once, for the lane mask, the
+        // level of detail and the lookup.
+        let texs: [Option<&crate::Texture>; M] = std::array::from_fn(|i| {
+            (i < F::LANES)
+                .then(|| {
+                    mat(i)?
+                        .texture
+                        .and_then(|t| scene.textures().get(t.index() as usize).map(|t| &**t))
+                })
+                .flatten()
+        });
+        let tex_of = |i: usize| texs[i];
         let mut texels = [Vec3A::ONE; M];
         let tex_lanes = lanes_of(lanes).fold(0u32, |m, i| m | (u32::from(tex_of(i).is_some()) << i));
         if tex_lanes != 0 {
@@ -1248,7 +1259,7 @@ impl<T: Tracer> Shader<'_, T> {
                 );
                 for (k, x) in four.iter().enumerate() {
                     if x.is_some() {
-                        texels[4 * q + k] = got[k].into();
+                        texels[4 * q + k] = got[k];
                     }
                 }
             }

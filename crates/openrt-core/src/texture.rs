@@ -2,7 +2,7 @@
 //! clamp-to-edge or mirrored-repeat addressing and nearest, bilinear or
 //! trilinear filtering.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
 mod lanes;
@@ -181,10 +181,15 @@ impl Level {
     /// of [`Level::bilinear`] (the lane-parallel lookup's last step).
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    fn blend(&self, t: &Taps, l: usize) -> Vec3 {
+    ///
+    /// PERF: in `Vec3A`, three coordinates to a register: `lerp` is
+    /// `a * (1 - s) + b * s` in both, coordinate by coordinate, so the bits
+    /// are those of `Vec3`.
+    fn blend(&self, t: &Taps, l: usize) -> Vec3A {
         let (xa, xb, ya, yb) = (t.xa[l] as usize, t.xb[l] as usize, t.ya[l] as usize, t.yb[l] as usize);
-        let top = self.texel(xa, ya).lerp(self.texel(xb, ya), t.fx[l]);
-        let bottom = self.texel(xa, yb).lerp(self.texel(xb, yb), t.fx[l]);
+        let texel = |x: usize, y: usize| Vec3A::from(self.texel(x, y));
+        let top = texel(xa, ya).lerp(texel(xb, ya), t.fx[l]);
+        let bottom = texel(xa, yb).lerp(texel(xb, yb), t.fx[l]);
         top.lerp(bottom, t.fy[l])
     }
 

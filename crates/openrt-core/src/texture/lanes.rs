@@ -9,7 +9,7 @@
 //! coordinates take this path; the caller sends other lanes to the scalar
 //! lookup.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 use wide::{f32x4, i32x4};
 
 use super::{Level, Taps, Texture, TextureWrap};
@@ -72,7 +72,7 @@ pub(crate) fn takes_lanes(t: &Texture, uv: Vec2) -> bool {
 /// lanes that [`takes_lanes`] (others: any value).
 #[allow(clippy::inline_always)]
 #[inline(always)]
-pub(crate) fn trilinear_lanes(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) -> [Vec3; 4] {
+pub(crate) fn trilinear_lanes(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) -> [Vec3A; 4] {
     let top = f32x4::from(texs.map(|t| (t.levels.len() - 1) as f32));
     // NOTE: max/min, not clamp: a NaN lod becomes 0 (`maxps` gives its
     // second operand for a NaN, as `f32::max` gives the number).
@@ -92,7 +92,7 @@ pub(crate) fn trilinear_lanes(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) ->
     let (u, v) = (x - floor4(x), y - floor4(y));
     let below = taps4(u, v, size(0, |l| l.width), size(0, |l| l.height));
     let above = taps4(u, v, size(1, |l| l.width), size(1, |l| l.height));
-    let mut out = [Vec3::ZERO; 4];
+    let mut out = [Vec3A::ZERO; 4];
     for (l, o) in out.iter_mut().enumerate() {
         let a = levels[l][0].blend(&below, l);
         *o = if f[l] == 0.0 || i[l] + 1 >= texs[l].levels.len() {
@@ -118,7 +118,7 @@ mod tests {
             _ => (rng.random_range(1..70), rng.random_range(1..70)),
         };
         let texels = (0..w * h)
-            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
+            .map(|_| glam::Vec3::new(rng.random(), rng.random(), rng.random()))
             .collect();
         Texture::new(w, h, texels).unwrap()
     }
