@@ -59,7 +59,7 @@ impl TextureData {
         let eight: Option<Vec<u8>> = t
             .texels()
             .iter()
-            .flat_map(Vec3::to_array)
+            .flat_map(glam::Vec3A::to_array)
             .map(|c| {
                 let b = (c * 255.0).round();
                 ((0.0..=255.0).contains(&b) && f32::from(b as u8) / 255.0 == c).then_some(b as u8)
@@ -77,7 +77,7 @@ impl TextureData {
                 width: t.width() as u32,
                 height: t.height() as u32,
                 rgb8: Vec::new(),
-                texels: t.texels().iter().map(Vec3::to_array).collect(),
+                texels: t.texels().iter().map(glam::Vec3A::to_array).collect(),
                 wrap: t.wrap(),
             },
         }

