@@ -1212,9 +1212,8 @@ impl<T: Tracer> Shader<'_, T> {
                 })
                 .flatten()
         });
-        let tex_of = |i: usize| texs[i];
         let mut texels = [Vec3A::ONE; M];
-        let tex_lanes = lanes_of(lanes).fold(0u32, |m, i| m | (u32::from(tex_of(i).is_some()) << i));
+        let tex_lanes = lanes_of(lanes).fold(0u32, |m, i| m | (u32::from(texs[i].is_some()) << i));
         if tex_lanes != 0 {
             let (mut uvx, mut uvy) = ([0.0; M], [0.0; M]);
             surf.uv[0].write_to(&mut uvx);
@@ -1225,7 +1224,7 @@ impl<T: Tracer> Shader<'_, T> {
             // triangle's, from the cone's width and the slant.
             let mut lod = [0.0; M];
             if trilinear {
-                let size = F::from_fn(|i| tex_of(i).map_or(1.0, |t| (t.width() * t.height()) as f32));
+                let size = F::from_fn(|i| texs[i].map_or(1.0, |t| (t.width() * t.height()) as f32));
                 let texel_area = surf.uv_area * size;
                 let cos = dot_lanes(&surf.facing.d, &surf.facing.nf);
                 let x = texel_area * width * width / (surf.world_area * cos * cos);
@@ -1235,7 +1234,7 @@ impl<T: Tracer> Shader<'_, T> {
                 let mut four: [Option<&crate::Texture>; 4] = [None; 4];
                 for (k, slot) in four.iter_mut().enumerate() {
                     let i = 4 * q + k;
-                    let Some(t) = tex_of(i).filter(|_| tex_lanes & (1 << i) != 0) else {
+                    let Some(t) = texs[i].filter(|_| tex_lanes & (1 << i) != 0) else {
                         continue;
                     };
                     if trilinear && crate::texture::takes_lanes(t, uv(i)) {
@@ -1251,9 +1250,8 @@ impl<T: Tracer> Shader<'_, T> {
                     continue;
                 };
                 let at = |k: usize| if four[k].is_some() { 4 * q + k } else { 4 * q + k0 };
-                let texs = four.map(|t| t.unwrap_or(first));
                 let got = crate::texture::trilinear_lanes(
-                    texs,
+                    four.map(|t| t.unwrap_or(first)),
                     std::array::from_fn(|k| uv(at(k))),
                     wide::f32x4::from(std::array::from_fn::<f32, 4, _>(|k| lod[at(k)])),
                 );
