@@ -673,7 +673,7 @@ impl<T: Tracer> Shader<'_, T> {
             let each = four.map(|x| x.unwrap_or(first));
             let (preps4, texs) = (each.map(|x| x.0), each.map(|x| x.1));
             let lod = lods(&preps4, texs);
-            let got = crate::texture::trilinear_lanes(texs, preps4.map(|p| p.surf.uv), lod);
+            let got = crate::texture::trilinear_lanes::<f32x4>(texs, preps4.map(|p| p.surf.uv), lod);
             for (i, x) in four.iter().enumerate() {
                 if x.is_some() {
                     texels[4 * c + i] = got[i].into();
@@ -1250,7 +1250,7 @@ impl<T: Tracer> Shader<'_, T> {
                     continue;
                 };
                 let at = |k: usize| if four[k].is_some() { 4 * q + k } else { 4 * q + k0 };
-                let got = crate::texture::trilinear_lanes(
+                let got = crate::texture::trilinear_lanes::<F>(
                     four.map(|t| t.unwrap_or(first)),
                     std::array::from_fn(|k| uv(at(k))),
                     wide::f32x4::from(std::array::from_fn::<f32, 4, _>(|k| lod[at(k)])),

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 mod lanes;
 
-pub(crate) use lanes::{takes_lanes, trilinear_lanes};
+pub(crate) use lanes::{floor4, takes_lanes, trilinear_lanes};
 
 /// How a texture coordinate outside `[0, 1]` is addressed, per axis (the
 /// wrap modes of OpenGL and of glTF samplers).

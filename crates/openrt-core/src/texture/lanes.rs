@@ -13,11 +13,12 @@ use glam::{Vec2, Vec3A};
 use wide::{f32x4, i32x4};
 
 use super::{Level, Taps, Texture, TextureWrap};
+use crate::simd::LaneF32;
 
 /// `floor` of [`super`], four lanes: the same bits (signed zeros, NaN and
-/// infinities included).
+/// infinities included), with SSE2 alone.
 #[inline]
-fn floor4(x: f32x4) -> f32x4 {
+pub(crate) fn floor4(x: f32x4) -> f32x4 {
     // Every float of magnitude 2^23 or more is an integer; NaN and the
     // infinities are kept as they are.
     let keep = !x.abs().simd_lt(f32x4::splat(8_388_608.0));
@@ -39,11 +40,11 @@ fn wrap4(i: i32x4, n: i32x4) -> i32x4 {
 /// (already wrapped into `[0, 1]`) in levels of `w x h` texels: the
 /// arithmetic of `Level::bilinear`, lane by lane.
 #[inline]
-fn taps4(u: f32x4, v: f32x4, w: i32x4, h: i32x4) -> Taps {
+fn taps4<F: LaneF32>(u: f32x4, v: f32x4, w: i32x4, h: i32x4) -> Taps {
     let half = f32x4::splat(0.5);
     let x = u * f32x4::from_i32x4(w) - half;
     let y = v * f32x4::from_i32x4(h) - half;
-    let (x0, y0) = (floor4(x), floor4(y));
+    let (x0, y0) = (F::floor4(x), F::floor4(y));
     let (fx, fy) = ((x - x0).to_array(), (y - y0).to_array());
     // Exact: the coordinates lie within one texel of the level.
     let (xi, yi) = (x0.trunc_int(), y0.trunc_int());
@@ -69,15 +70,16 @@ pub(crate) fn takes_lanes(t: &Texture, uv: Vec2) -> bool {
 
 /// Trilinear lookups of four lanes at once: lane `i` is
 /// `texs[i].sample_filtered(uv[i], lod[i], Trilinear)`, bit for bit, for
-/// lanes that [`takes_lanes`] (others: any value).
+/// lanes that [`takes_lanes`] (others: any value); the floors in `F`'s
+/// instruction set ([`LaneF32::floor4`]).
 #[allow(clippy::inline_always)]
 #[inline(always)]
-pub(crate) fn trilinear_lanes(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) -> [Vec3A; 4] {
+pub(crate) fn trilinear_lanes<F: LaneF32>(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) -> [Vec3A; 4] {
     let top = f32x4::from(texs.map(|t| (t.levels.len() - 1) as f32));
     // NOTE: max/min, not clamp: a NaN lod becomes 0 (`maxps` gives its
     // second operand for a NaN, as `f32::max` gives the number).
     let lod = lod.fast_max(f32x4::ZERO).fast_min(top);
-    let base = floor4(lod);
+    let base = F::floor4(lod);
     let f = (lod - base).to_array();
     let i = base.trunc_int().to_array().map(|i| i.unsigned_abs() as usize);
     // The level below the lod and the next (the same where there is none:
@@ -89,9 +91,9 @@ pub(crate) fn trilinear_lanes(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) ->
     let size =
         |k: usize, a: fn(&Level) -> usize| i32x4::from(levels.map(|l| i32::try_from(a(l[k])).unwrap_or(i32::MAX)));
     let (x, y) = (f32x4::from(uv.map(|c| c.x)), f32x4::from(uv.map(|c| c.y)));
-    let (u, v) = (x - floor4(x), y - floor4(y));
-    let below = taps4(u, v, size(0, |l| l.width), size(0, |l| l.height));
-    let above = taps4(u, v, size(1, |l| l.width), size(1, |l| l.height));
+    let (u, v) = (x - F::floor4(x), y - F::floor4(y));
+    let below = taps4::<F>(u, v, size(0, |l| l.width), size(0, |l| l.height));
+    let above = taps4::<F>(u, v, size(1, |l| l.width), size(1, |l| l.height));
     let mut out = [Vec3A::ZERO; 4];
     for (l, o) in out.iter_mut().enumerate() {
         let a = levels[l][0].blend(&below, l);
@@ -157,7 +159,20 @@ mod tests {
             let texs: [&Texture; 4] = std::array::from_fn(|_| &pool[rng.random_range(0..2)]);
             let uv: [Vec2; 4] = std::array::from_fn(|_| Vec2::new(coordinate(&mut rng), coordinate(&mut rng)));
             let lods: [f32; 4] = std::array::from_fn(|_| lod(&mut rng));
-            let got = trilinear_lanes(texs, uv, f32x4::from(lods));
+            let got = trilinear_lanes::<f32x4>(texs, uv, f32x4::from(lods));
+            // The AVX2 code's lookups (SSE4.1 floors) give the same bits.
+            #[cfg(target_arch = "x86_64")]
+            if openrt_accel::avx2() {
+                // SAFETY: the CPU has AVX2 (detected at run time).
+                let eight = unsafe { lookups_avx2(texs, uv, f32x4::from(lods)) };
+                for l in 0..4 {
+                    assert_eq!(
+                        got[l].to_array().map(f32::to_bits),
+                        eight[l].to_array().map(f32::to_bits),
+                        "round {round}, lane {l}: AVX2 lookup"
+                    );
+                }
+            }
             for l in 0..4 {
                 assert!(takes_lanes(texs[l], uv[l]));
                 let want = texs[l].sample_filtered(uv[l], lods[l], TextureFilter::Trilinear);
@@ -172,6 +187,20 @@ mod tests {
             }
         }
         assert!(blended > 10_000, "{blended} lanes between two levels");
+    }
+
+    /// [`trilinear_lanes`] as the AVX2-compiled shading runs it.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn lookups_avx2(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) -> [Vec3A; 4] {
+        trilinear_lanes::<crate::simd::F32x8>(texs, uv, lod)
+    }
+
+    /// [`LaneF32::floor4`] of the AVX2 lanes (`roundps`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn floor_avx2(x: f32x4) -> f32x4 {
+        <crate::simd::F32x8 as LaneF32>::floor4(x)
     }
 
     #[test]
@@ -199,6 +228,14 @@ mod tests {
             let got = floor4(f32x4::from(x)).to_array();
             for (a, b) in x.iter().zip(got) {
                 assert_eq!(a.floor().to_bits(), b.to_bits(), "floor({a})");
+            }
+            #[cfg(target_arch = "x86_64")]
+            if openrt_accel::avx2() {
+                // SAFETY: the CPU has AVX2 (detected at run time).
+                let got = unsafe { floor_avx2(f32x4::from(x)) }.to_array();
+                for (a, b) in x.iter().zip(got) {
+                    assert_eq!(a.floor().to_bits(), b.to_bits(), "AVX2 floor({a})");
+                }
             }
         };
         for c in special.chunks(4) {
