@@ -649,7 +649,7 @@ impl<T: Tracer> Shader<'_, T> {
     /// lane at a time.
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    fn texels_lanes<const N: usize>(&self, preps: &[Option<Prepared>; N], texels: &mut [Vec3; N]) {
+    fn texels_lanes<const N: usize, F: LaneF32>(&self, preps: &[Option<Prepared>; N], texels: &mut [Vec3; N]) {
         let scene = self.scene;
         let trilinear = self.filter == TextureFilter::Trilinear;
         for c in 0..N / 4 {
@@ -673,7 +673,7 @@ impl<T: Tracer> Shader<'_, T> {
             let each = four.map(|x| x.unwrap_or(first));
             let (preps4, texs) = (each.map(|x| x.0), each.map(|x| x.1));
             let lod = lods(&preps4, texs);
-            let got = crate::texture::trilinear_lanes::<f32x4>(texs, preps4.map(|p| p.surf.uv), lod);
+            let got = crate::texture::trilinear_lanes::<F>(texs, preps4.map(|p| p.surf.uv), lod);
             for (i, x) in four.iter().enumerate() {
                 if x.is_some() {
                     texels[4 * c + i] = got[i].into();
@@ -885,7 +885,7 @@ impl<T: Tracer> Shader<'_, T> {
         // The texels of every lane, then the light loop four lanes at a
         // time, then each lane's bounces.
         let mut texels = [Vec3::ONE; N];
-        self.texels_lanes(&preps, &mut texels);
+        self.texels_lanes::<N, F>(&preps, &mut texels);
         let mut hits = [LitHit::default(); N];
         let mut have = 0u32;
         for l in lanes_of(lanes) {

@@ -98,6 +98,19 @@ pub(crate) trait LaneF32:
     fn floor4(x: f32x4) -> f32x4;
 }
 
+/// `f32::floor` of four lanes with SSE2 alone: the same bits (signed
+/// zeros, NaN and infinities included); the portable [`LaneF32::floor4`].
+#[inline]
+fn floor4_sse2(x: f32x4) -> f32x4 {
+    // Every float of magnitude 2^23 or more is an integer; NaN and the
+    // infinities are kept as they are.
+    let keep = !x.abs().simd_lt(f32x4::splat(8_388_608.0));
+    let t = f32x4::from_i32x4(x.trunc_int());
+    let down = t.simd_gt(x).bitselect(t - f32x4::ONE, t);
+    let exact = t.simd_eq(x);
+    (keep | exact).bitselect(x, down)
+}
+
 /// Lanes of `i32` beside a [`LaneF32`].
 pub(crate) trait LaneI32: Copy + Add<Output = Self> + Sub<Output = Self> + BitAnd<Output = Self> {
     /// The matching float lanes.
@@ -196,7 +209,7 @@ impl LaneF32 for f32x4 {
     }
     #[inline(always)]
     fn floor4(x: f32x4) -> f32x4 {
-        crate::texture::floor4(x)
+        floor4_sse2(x)
     }
     #[inline(always)]
     fn transpose(v: impl Fn(usize) -> Vec3A) -> [Self; 3] {
@@ -513,5 +526,53 @@ mod tests {
         }
         // The subnormal bases' branch is taken.
         assert!(subnormal > 1_000, "{subnormal} subnormal bases");
+    }
+
+    /// [`LaneF32::floor4`] of the AVX2 lanes (`roundps`).
+    #[target_feature(enable = "avx2")]
+    fn floor_avx2(x: f32x4) -> f32x4 {
+        <F32x8 as LaneF32>::floor4(x)
+    }
+
+    #[test]
+    fn the_lane_floor_is_floor_bit_for_bit() {
+        let mut rng = SmallRng::seed_from_u64(3);
+        let special = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            1e30,
+            -1e30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+        ];
+        let check = |x: [f32; 4]| {
+            let got = <f32x4 as LaneF32>::floor4(f32x4::from(x)).to_array();
+            for (a, b) in x.iter().zip(got) {
+                assert_eq!(a.floor().to_bits(), b.to_bits(), "floor({a})");
+            }
+            if openrt_accel::avx2() {
+                // SAFETY: the CPU has AVX2 (detected at run time).
+                let got = unsafe { floor_avx2(f32x4::from(x)) }.to_array();
+                for (a, b) in x.iter().zip(got) {
+                    assert_eq!(a.floor().to_bits(), b.to_bits(), "AVX2 floor({a})");
+                }
+            }
+        };
+        for c in special.chunks(4) {
+            check([c[0], c[1], c[2], c[3]]);
+        }
+        for _ in 0..50_000 {
+            check(std::array::from_fn(|_| f32::from_bits(rng.random())));
+        }
     }
 }

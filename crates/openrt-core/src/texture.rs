@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 mod lanes;
 
-pub(crate) use lanes::{floor4, takes_lanes, trilinear_lanes};
+pub(crate) use lanes::{takes_lanes, trilinear_lanes};
 
 /// How a texture coordinate outside `[0, 1]` is addressed, per axis (the
 /// wrap modes of OpenGL and of glTF samplers).
@@ -158,8 +158,8 @@ impl Level {
             let (y0, y1) = (2 * y, (2 * y + 1).min(self.height - 1));
             for x in 0..w {
                 let (x0, x1) = (2 * x, (2 * x + 1).min(self.width - 1));
-                let sum = self.texel(x0, y0) + self.texel(x1, y0) + self.texel(x0, y1) + self.texel(x1, y1);
-                texels.push((sum * 0.25).into());
+                let sum = self.texel_a(x0, y0) + self.texel_a(x1, y0) + self.texel_a(x0, y1) + self.texel_a(x1, y1);
+                texels.push(sum * 0.25);
             }
         }
         Self {

@@ -15,19 +15,6 @@ use wide::{f32x4, i32x4};
 use super::{Level, Taps, Texture, TextureWrap};
 use crate::simd::LaneF32;
 
-/// `floor` of [`super`], four lanes: the same bits (signed zeros, NaN and
-/// infinities included), with SSE2 alone.
-#[inline]
-pub(crate) fn floor4(x: f32x4) -> f32x4 {
-    // Every float of magnitude 2^23 or more is an integer; NaN and the
-    // infinities are kept as they are.
-    let keep = !x.abs().simd_lt(f32x4::splat(8_388_608.0));
-    let t = f32x4::from_i32x4(x.trunc_int());
-    let down = t.simd_gt(x).bitselect(t - f32x4::ONE, t);
-    let exact = t.simd_eq(x);
-    (keep | exact).bitselect(x, down)
-}
-
 /// `wrap` of [`super`] for indices at most one period outside `[0, n)`.
 #[inline]
 fn wrap4(i: i32x4, n: i32x4) -> i32x4 {
@@ -194,55 +181,5 @@ mod tests {
     #[target_feature(enable = "avx2")]
     fn lookups_avx2(texs: [&Texture; 4], uv: [Vec2; 4], lod: f32x4) -> [Vec3A; 4] {
         trilinear_lanes::<crate::simd::F32x8>(texs, uv, lod)
-    }
-
-    /// [`LaneF32::floor4`] of the AVX2 lanes (`roundps`).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn floor_avx2(x: f32x4) -> f32x4 {
-        <crate::simd::F32x8 as LaneF32>::floor4(x)
-    }
-
-    #[test]
-    fn the_lane_floor_is_floor_bit_for_bit() {
-        let mut rng = SmallRng::seed_from_u64(3);
-        let special = [
-            0.0,
-            -0.0,
-            0.5,
-            -0.5,
-            1.0,
-            -1.0,
-            8_388_607.5,
-            -8_388_607.5,
-            8_388_608.0,
-            1e30,
-            -1e30,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            f32::MIN_POSITIVE,
-            -f32::MIN_POSITIVE,
-        ];
-        let check = |x: [f32; 4]| {
-            let got = floor4(f32x4::from(x)).to_array();
-            for (a, b) in x.iter().zip(got) {
-                assert_eq!(a.floor().to_bits(), b.to_bits(), "floor({a})");
-            }
-            #[cfg(target_arch = "x86_64")]
-            if openrt_accel::avx2() {
-                // SAFETY: the CPU has AVX2 (detected at run time).
-                let got = unsafe { floor_avx2(f32x4::from(x)) }.to_array();
-                for (a, b) in x.iter().zip(got) {
-                    assert_eq!(a.floor().to_bits(), b.to_bits(), "AVX2 floor({a})");
-                }
-            }
-        };
-        for c in special.chunks(4) {
-            check([c[0], c[1], c[2], c[3]]);
-        }
-        for _ in 0..50_000 {
-            check(std::array::from_fn(|_| f32::from_bits(rng.random())));
-        }
     }
 }
