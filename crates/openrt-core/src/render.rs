@@ -547,6 +547,8 @@ fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
     };
     let offsets: Vec<(f32, f32)> = (0..spp).map(|i| sample_offset(job.settings.first_sample + i)).collect();
     let mut done = Vec::new();
+    // Shaded blocks kept from tile to tile, one pool per packet width.
+    let (mut pool4, mut pool8, mut pool16) = (BlockPool::new(), BlockPool::new(), BlockPool::new());
     loop {
         let k = job.next.fetch_add(1, Ordering::Relaxed);
         if k >= job.n_tiles {
@@ -590,10 +592,14 @@ fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
                     }
                 }
             }
-            (true, PacketWidth::W4) => packet_tile::<4, T>(&mut shader, job, tile, cone, &offsets, &mut pixels),
-            (true, PacketWidth::W8) => packet_tile::<8, T>(&mut shader, job, tile, cone, &offsets, &mut pixels),
+            (true, PacketWidth::W4) => {
+                packet_tile::<4, T>(&mut shader, job, tile, cone, &offsets, &mut pixels, &mut pool4);
+            }
+            (true, PacketWidth::W8) => {
+                packet_tile::<8, T>(&mut shader, job, tile, cone, &offsets, &mut pixels, &mut pool8);
+            }
             (true, PacketWidth::W16) => {
-                packet_tile::<16, T>(&mut shader, job, tile, cone, &offsets, &mut pixels);
+                packet_tile::<16, T>(&mut shader, job, tile, cone, &offsets, &mut pixels, &mut pool16);
             }
         }
         for p in &mut pixels {
@@ -637,6 +643,24 @@ pub const fn packet_block(n: usize) -> (u32, u32) {
     }
 }
 
+/// Shaded blocks of `N` lanes that a render thread keeps from tile to tile
+/// ([`packet_tile`]): the tile's blocks, and the bounces' blocks of each
+/// depth ([`Shader::bounce_blocks`]). A block is written by
+/// [`Shader::shade_block`] before it is read, so none is cleared.
+struct BlockPool<const N: usize> {
+    shaded: Vec<ShadedBlock<N>>,
+    levels: Vec<Vec<ShadedBlock<N>>>,
+}
+
+impl<const N: usize> BlockPool<N> {
+    fn new() -> Self {
+        Self {
+            shaded: Vec::new(),
+            levels: Vec::new(),
+        }
+    }
+}
+
 /// Renders a tile in packets of `N` primary rays (blocks of pixels):
 /// [`Shader::shade_block`] for each block, then [`Shader::bounce_blocks`]
 /// for the bounces of all the tile's blocks at once (those of equal
@@ -650,6 +674,7 @@ fn packet_tile<const N: usize, T: Tracer>(
     cone: Cone,
     offsets: &[(f32, f32)],
     pixels: &mut [Vec3],
+    pool: &mut BlockPool<N>,
 ) {
     let (bw, bh) = packet_block(N);
     let cones = [cone; N];
@@ -677,8 +702,11 @@ fn packet_tile<const N: usize, T: Tracer>(
     // bounces of equal direction signs from different blocks can share
     // packets.
     let bounces = shader.traces_bounces();
-    let mut shaded: Vec<ShadedBlock<N>> = Vec::new();
-    shaded.resize_with(if bounces { blocks.len() } else { 1 }, ShadedBlock::new);
+    let need = if bounces { blocks.len() } else { 1 };
+    if pool.shaded.len() < need {
+        pool.shaded.resize_with(need, ShadedBlock::new);
+    }
+    let shaded = &mut pool.shaded[..need];
     // Lanes outside the tile keep a valid ray, never read.
     let mut rays = [job.cam.ray(tile.x0, tile.y0); N];
     for &(ox, oy) in offsets {
@@ -700,8 +728,8 @@ fn packet_tile<const N: usize, T: Tracer>(
             }
         }
         if bounces {
-            shader.bounce_blocks(&mut shaded, 0);
-            for (s, b) in sum.iter_mut().zip(&shaded) {
+            shader.bounce_blocks(shaded, 0, &mut pool.levels);
+            for (s, b) in sum.iter_mut().zip(shaded.iter()) {
                 for l in lanes_of(b.lanes) {
                     s[l] += b.color[l];
                 }

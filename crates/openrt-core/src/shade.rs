@@ -739,11 +739,19 @@ impl<T: Tracer> Shader<'_, T> {
     #[allow(clippy::inline_always)]
     #[inline(always)]
     fn bounces(&mut self, prep: &Prepared, depth: u32, bounces: &mut Bounces) {
+        bounces[0] = None;
+        bounces[1] = None;
+        self.bounces_with(prep, depth, |k, w, r| bounces[k] = Some((w, r)));
+    }
+
+    /// The bounces of [`Shader::bounces`], each handed to `put` with its
+    /// kind (0 refraction, 1 reflection), its weight and its ray.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn bounces_with(&mut self, prep: &Prepared, depth: u32, mut put: impl FnMut(usize, Vec3, Ray)) {
         let surf = &prep.surf;
         let (d, back, nf, ns, p_out) = (prep.d, prep.back, prep.nf, prep.ns, prep.p_out);
         let mat = &self.scene.materials()[surf.material.index() as usize];
-        bounces[0] = None;
-        bounces[1] = None;
         if self.mode != RenderMode::Whitted || depth >= self.max_depth {
             return;
         }
@@ -760,7 +768,7 @@ impl<T: Tracer> Shader<'_, T> {
                 self.counts.refraction += 1;
                 let p_in = offset_ray_origin(surf.point, -nf, surf.error_scale);
                 // NOTE: `splat(w) * c` is `w * c` bit for bit (one product per channel).
-                bounces[0] = Some((Vec3::splat(mat.transmission), Ray::new(p_in, t, 0.0, f32::INFINITY)));
+                put(0, Vec3::splat(mat.transmission), Ray::new(p_in, t, 0.0, f32::INFINITY));
             } else {
                 // Total internal reflection: the transmitted share is reflected.
                 mirror_weight += Vec3::splat(mat.transmission);
@@ -772,7 +780,7 @@ impl<T: Tracer> Shader<'_, T> {
                 r = reflect(d, nf);
             }
             self.counts.reflection += 1;
-            bounces[1] = Some((mirror_weight, Ray::new(p_out, r, 0.0, f32::INFINITY)));
+            put(1, mirror_weight, Ray::new(p_out, r, 0.0, f32::INFINITY));
         }
     }
 
@@ -810,6 +818,8 @@ impl<T: Tracer> Shader<'_, T> {
             lanes,
             depth,
         };
+        // Every path sets the bounces of its lanes from here.
+        block.bouncing = [0; 2];
         #[cfg(target_arch = "x86_64")]
         if N >= 8 && openrt_accel::avx2() {
             // SAFETY: the CPU has AVX2 (detected at run time).
@@ -921,11 +931,10 @@ impl<T: Tracer> Shader<'_, T> {
         }
         for l in lanes_of(lanes) {
             if let Some(p) = &preps[l] {
-                self.bounces(p, depth, &mut block.bounces[l]);
+                self.bounces_with(p, depth, |k, w, r| block.set_bounce(k, l, w, r));
                 block.cones[l] = p.cone;
             } else {
                 block.color[l] = self.env.background;
-                block.bounces[l] = [None; 2];
             }
         }
         self.clock.stop::<ON>(t, Phase::Lights);
@@ -993,7 +1002,6 @@ impl<T: Tracer> Shader<'_, T> {
         let mut lits: [Option<LitLanes<F>>; 4] = [None; 4];
         let mut shadows = [ShadowLanes::default(); 4];
         let mut have = 0u32;
-        let mut mirrored = 0u32;
         let mut t = t;
         for c in 0..N / w {
             let bits = (lanes >> (w * c)) & lanes_mask(w);
@@ -1049,9 +1057,8 @@ impl<T: Tracer> Shader<'_, T> {
                     for i in lanes_of(mirror) {
                         self.counts.reflection += 1;
                         let ray = Ray::new(ov[i], r[i], 0.0, f32::INFINITY);
-                        block.bounces[w * c + i] = [None, Some((specular[i], ray))];
+                        block.set_bounce(1, w * c + i, specular[i], ray);
                     }
-                    mirrored |= mirror << (w * c);
                 }
                 surf.each(&some, bounce & refracts, &mut |i, surface, facing| {
                     preps[w * c + i] = Some(Prepared {
@@ -1098,12 +1105,9 @@ impl<T: Tracer> Shader<'_, T> {
         }
         for l in lanes_of(lanes) {
             if let Some(p) = &preps[l] {
-                self.bounces(p, depth, &mut block.bounces[l]);
-            } else if mirrored & (1 << l) == 0 {
-                block.bounces[l] = [None; 2];
-                if have & (1 << l) == 0 {
-                    block.color[l] = self.env.background;
-                }
+                self.bounces_with(p, depth, |k, w, r| block.set_bounce(k, l, w, r));
+            } else if have & (1 << l) == 0 {
+                block.color[l] = self.env.background;
             }
         }
         self.clock.stop::<ON>(t, Phase::Lights);
@@ -1182,9 +1186,6 @@ impl<T: Tracer> Shader<'_, T> {
         }
         for l in lanes_of(lanes & !have & !alone) {
             block.color[l] = self.env.background;
-        }
-        for l in lanes_of(lanes) {
-            block.bounces[l] = [None; 2];
         }
         if alone != 0 {
             self.shade_local_alone(rays, cones, hits, alone, block);
@@ -1334,30 +1335,32 @@ impl<T: Tracer> Shader<'_, T> {
     /// same way, depth by depth. Every lane gets the bytes of
     /// [`Shader::trace`] either way: the same rays, and the same sums in the
     /// same order.
-    pub fn bounce_blocks<const N: usize>(&mut self, blocks: &mut [ShadedBlock<N>], depth: u32) {
+    pub fn bounce_blocks<const N: usize>(
+        &mut self,
+        blocks: &mut [ShadedBlock<N>],
+        depth: u32,
+        pool: &mut Vec<Vec<ShadedBlock<N>>>,
+    ) {
+        let level = depth as usize;
+        if pool.len() <= level {
+            pool.resize_with(level + 1, Vec::new);
+        }
         for k in 0..2 {
-            // The next depth's packets, each lane's (block, lane) beside it.
-            let mut rays_next: Vec<NextPacket<N>> = Vec::new();
+            // The next depth's packets: blocks whose lanes all bounce with
+            // the same signs (their rays as they lie in the block), then
+            // packets gathered from the pooled lanes.
+            let mut next: Vec<NextPacket> = Vec::new();
+            let mut gathered: Vec<Gathered<N>> = Vec::new();
             // By direction signs, the (block, lane) of bounces left out of
             // their block's packets; then those that go alone.
             let mut pooled: [Vec<(usize, usize)>; 8] = Default::default();
             let mut alone: Vec<(usize, usize)> = Vec::new();
             for (bi, b) in blocks.iter().enumerate() {
-                // PERF: no packet of bounces to copy when no lane has one
-                // (every GL-like packet, most Whitted ones at their last depth).
-                let Some(Some((_, filler))) = lanes_of(b.lanes)
-                    .find(|&l| b.bounces[l][k].is_some())
-                    .map(|l| b.bounces[l][k])
-                else {
+                // PERF: nothing to group when no lane bounces (every GL-like
+                // packet, most Whitted ones at their last depth).
+                let mask = b.bouncing[k];
+                if mask == 0 {
                     continue;
-                };
-                let mut next = [filler; N];
-                let mut mask = 0u32;
-                for l in lanes_of(b.lanes) {
-                    if let Some((_, r)) = b.bounces[l][k] {
-                        next[l] = r;
-                        mask |= 1 << l;
-                    }
                 }
                 // Regrouped by direction signs: when every lane of the
                 // packet has a bounce of this kind with the same signs (a
@@ -1367,10 +1370,10 @@ impl<T: Tracer> Shader<'_, T> {
                 // museum16k Whitted frames 6% slower than single rays; pooled
                 // ones from 8 lanes up made the kitchen's 8% faster
                 // (docs/PERFORMANCE.md).
-                let (groups, zero) = sign_groups(&next, mask);
+                let (groups, zero) = sign_groups(&b.rays[k], mask);
                 for (gi, &g) in groups.iter().enumerate() {
                     if g.count_ones() as usize == N {
-                        rays_next.push((next, b.cones, g, std::array::from_fn(|l| (bi, l))));
+                        next.push(NextPacket::Whole(bi));
                     } else {
                         pooled[gi].extend(lanes_of(g).map(|l| (bi, l)));
                     }
@@ -1383,46 +1386,70 @@ impl<T: Tracer> Shader<'_, T> {
                         alone.extend_from_slice(chunk);
                         continue;
                     }
-                    let ray = |(bi, l): (usize, usize)| blocks[bi].bounces[l][k].map(|x| x.1);
-                    let Some(filler) = ray(chunk[0]) else {
-                        continue;
+                    let ray = |(bi, l): (usize, usize)| blocks[bi].rays[k][l];
+                    let filler = ray(chunk[0]);
+                    let mut g = Gathered {
+                        rays: [filler; N],
+                        cones: [blocks[chunk[0].0].cones[chunk[0].1]; N],
+                        lanes: u32::MAX >> (32 - chunk.len()),
+                        from: [chunk[0]; N],
                     };
-                    let mut next = [filler; N];
-                    let mut cones = [blocks[chunk[0].0].cones[chunk[0].1]; N];
-                    let mut from = [chunk[0]; N];
                     for (i, &(bi, l)) in chunk.iter().enumerate() {
-                        next[i] = ray((bi, l)).unwrap_or(filler);
-                        cones[i] = blocks[bi].cones[l];
-                        from[i] = (bi, l);
+                        g.rays[i] = ray((bi, l));
+                        g.cones[i] = blocks[bi].cones[l];
+                        g.from[i] = (bi, l);
                     }
-                    rays_next.push((next, cones, u32::MAX >> (32 - chunk.len()), from));
+                    next.push(NextPacket::Gathered(gathered.len()));
+                    gathered.push(g);
                 }
             }
             for (bi, l) in alone {
-                let Some((w, r)) = blocks[bi].bounces[l][k] else {
-                    continue;
-                };
+                let (w, r) = (blocks[bi].weights[k][l], blocks[bi].rays[k][l]);
                 let c = self.trace(&r, blocks[bi].cones[l], depth + 1);
                 blocks[bi].color[l] += w * c;
             }
-            if rays_next.is_empty() {
+            if next.is_empty() {
                 continue;
             }
-            let mut next_blocks: Vec<ShadedBlock<N>> = Vec::with_capacity(rays_next.len());
-            for (rays, cones, lanes, _) in &rays_next {
-                next_blocks.push(ShadedBlock::new());
-                if let Some(b) = next_blocks.last_mut() {
-                    self.shade_block(rays, cones, *lanes, depth + 1, b);
+            // PERF: the next depth's blocks are the pool's, kept from tile
+            // to tile (`shade_block` writes every field its lanes read).
+            let mut next_blocks = std::mem::take(&mut pool[level]);
+            if next_blocks.len() < next.len() {
+                next_blocks.resize_with(next.len(), ShadedBlock::new);
+            }
+            let next_blocks_here = &mut next_blocks[..next.len()];
+            for (packet, nb) in next.iter().zip(next_blocks_here.iter_mut()) {
+                match *packet {
+                    NextPacket::Whole(bi) => {
+                        let b = &blocks[bi];
+                        self.shade_block(&b.rays[k], &b.cones, b.bouncing[k], depth + 1, nb);
+                    }
+                    NextPacket::Gathered(gi) => {
+                        let g = &gathered[gi];
+                        self.shade_block(&g.rays, &g.cones, g.lanes, depth + 1, nb);
+                    }
                 }
             }
-            self.bounce_blocks(&mut next_blocks, depth + 1);
-            for (nb, (_, _, lanes, from)) in next_blocks.iter().zip(&rays_next) {
-                for i in lanes_of(*lanes) {
-                    let (bi, l) = from[i];
-                    let b = &mut blocks[bi];
-                    b.color[l] += b.bounces[l][k].map_or(Vec3::ZERO, |x| x.0) * nb.color[i];
+            self.bounce_blocks(next_blocks_here, depth + 1, pool);
+            for (packet, nb) in next.iter().zip(next_blocks_here.iter()) {
+                match *packet {
+                    NextPacket::Whole(bi) => {
+                        let b = &mut blocks[bi];
+                        for l in lanes_of(b.bouncing[k]) {
+                            b.color[l] += b.weights[k][l] * nb.color[l];
+                        }
+                    }
+                    NextPacket::Gathered(gi) => {
+                        let g = &gathered[gi];
+                        for i in lanes_of(g.lanes) {
+                            let (bi, l) = g.from[i];
+                            let b = &mut blocks[bi];
+                            b.color[l] += b.weights[k][l] * nb.color[i];
+                        }
+                    }
                 }
             }
+            pool[level] = next_blocks;
         }
     }
 }
@@ -1436,9 +1463,23 @@ struct BlockIn<'r, const N: usize> {
     depth: u32,
 }
 
-/// A packet of bounces for the next depth: its rays, their cones, its
-/// lanes, and the (block, lane) each lane's radiance goes back to.
-type NextPacket<const N: usize> = ([Ray; N], [Cone; N], u32, [(usize, usize); N]);
+/// A packet of bounces for the next depth ([`Shader::bounce_blocks`]).
+#[derive(Clone, Copy)]
+enum NextPacket {
+    /// Every lane of block `.0`, its bounce rays as they lie.
+    Whole(usize),
+    /// The pooled packet `.0` ([`Gathered`]).
+    Gathered(usize),
+}
+
+/// Bounces pooled from several blocks into one packet: its rays, their
+/// cones, its lanes, and the (block, lane) each lane's radiance goes back to.
+struct Gathered<const N: usize> {
+    rays: [Ray; N],
+    cones: [Cone; N],
+    lanes: u32,
+    from: [(usize, usize); N],
+}
 
 /// Bounces of equal direction signs pooled across a tile's blocks go on as
 /// a packet from this many lanes up ([`Shader::bounce_blocks`]).
@@ -1446,9 +1487,15 @@ pub(crate) const POOLED_MIN: usize = 8;
 
 /// A packet shaded up to its bounces ([`Shader::shade_block`]): each lane's
 /// local colour, the bounces it still traces, and the cone they carry.
+/// Bounces of kind `k` (0 refraction, 1 reflection) lie lane by lane in
+/// `rays[k]` and `weights[k]` for the lanes of `bouncing[k]`, so that a
+/// block's bounces go on as a packet without a copy; other lanes hold
+/// stale values, never read.
 pub(crate) struct ShadedBlock<const N: usize> {
     pub color: [Vec3; N],
-    pub bounces: [Bounces; N],
+    pub rays: [[Ray; N]; 2],
+    pub weights: [[Vec3; N]; 2],
+    pub bouncing: [u32; 2],
     pub cones: [Cone; N],
     pub lanes: u32,
 }
@@ -1458,10 +1505,21 @@ impl<const N: usize> ShadedBlock<N> {
     pub fn new() -> Self {
         Self {
             color: [Vec3::ZERO; N],
-            bounces: [[None; 2]; N],
+            rays: [[Ray::infinite(Vec3::ZERO, Vec3::X); N]; 2],
+            weights: [[Vec3::ZERO; N]; 2],
+            bouncing: [0; 2],
             cones: [Cone::default(); N],
             lanes: 0,
         }
+    }
+
+    /// Lane `l`'s bounce of kind `k`: its weight `w` and ray `r`.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn set_bounce(&mut self, k: usize, l: usize, w: Vec3, r: Ray) {
+        self.rays[k][l] = r;
+        self.weights[k][l] = w;
+        self.bouncing[k] |= 1 << l;
     }
 }
 
