@@ -58,7 +58,7 @@ pub use kd::sah_params::{DEFAULT_BINNED_ABOVE, SahParams, default_max_depth};
 pub use kd::traverse::traverse;
 pub use kd::tree::{BuilderKind, KdTree, TreeStats};
 pub use packet::boxes::{BOX_SLACK, PacketBoxes, ray_reaches, ray_reaches_quad};
-pub use packet::frustum::{FRUSTUM_MARGIN, Frustum, frustum_culling, set_frustum_culling};
+pub use packet::frustum::{FRUSTUM_MARGIN, Frustum, THROUGH_RADIUS, frustum_culling, set_frustum_culling};
 pub use packet::interval::PacketInterval;
 pub use packet::traverse::traverse_packet;
 #[cfg(target_arch = "x86_64")]

@@ -1,7 +1,8 @@
 //! Packet traversal against its scalar twin: every lane's answer must equal
 //! the single-ray answer bit for bit (t, triangle, barycentrics, the closest
 //! distance left behind, any-hit), for coherent, incoherent and hard rays,
-//! packets that mix direction signs, zero and -0.0 components, NaN and
+//! mirrored packets (lines through a virtual apex), packets that mix
+//! direction signs, zero and -0.0 components, NaN and
 //! empty-interval lanes and inactive lanes, at every packet width.
 
 use glam::Vec3;
@@ -20,6 +21,16 @@ fn ray_set(tris: &[Triangle], seed: u64) -> Vec<Ray> {
     let r = b.extent().max_element();
     let mut rays = meshgen::camera_rays(c + Vec3::new(0.3, 0.4, 2.0) * r, c, 48, 32, 50.0);
     rays.extend(meshgen::camera_rays(c - Vec3::new(1.5, -0.2, 0.7) * r, c, 24, 16, 70.0));
+    // Bounces off a plane mirror through the mesh and off a sphere around
+    // it: packets whose lines pass near one point (`Frustum::through`).
+    let eye = c + Vec3::new(0.2, 0.3, 2.5) * r;
+    let camera = meshgen::camera_rays(eye, c, 32, 16, 60.0);
+    rays.extend(meshgen::mirrored_rays(
+        &camera,
+        c + Vec3::Z * 0.1 * r,
+        Vec3::new(0.0, 0.1, 1.0).normalize(),
+    ));
+    rays.extend(meshgen::sphere_mirrored_rays(&camera, c - Vec3::Z * 20.0 * r, 19.5 * r));
     rays.extend(meshgen::random_rays(600, seed, b));
     rays.extend(meshgen::hard_rays(tris, 600, seed));
     let mut rng = SmallRng::seed_from_u64(seed);

@@ -394,7 +394,9 @@ impl Scene {
         // packet was 2% of robots' primary rays, whose city has none).
         let mut local: Option<[Ray; N]> = None;
         let mut hits = [None; N];
-        let frustum = openrt_accel::Frustum::new(rays, lanes);
+        // Primary rays share their origin; rays a mirror reflects from
+        // them pass near a virtual one.
+        let frustum = openrt_accel::Frustum::for_intersect(rays, lanes);
         self.walk_packet(rays, lanes, frustum.as_ref(), |i, inst, active, closest, laid_out| {
             // An instance without a transform sees the world frustum as it is.
             let f = frustum.as_ref().filter(|_| inst.identity);
@@ -628,8 +630,8 @@ impl Scene {
         // lane that meets an instance again (after its slot was taken)
         // finds the same hits, none of them closer.
         let mut mailbox = [(u32::MAX, 0u32); MAILBOX];
-        // Packets without a frustum (bounces: their origins differ) skip
-        // boxes by the intervals of their lanes instead.
+        // Packets without a frustum (bounces without a virtual apex)
+        // skip boxes by the intervals of their lanes instead.
         let interval = if frustum.is_none() {
             PacketInterval::new(&boxes, live)
         } else {

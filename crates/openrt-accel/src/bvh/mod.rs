@@ -142,7 +142,8 @@ fn dense<const N: usize>(active: u32) -> bool {
 }
 
 /// What a packet walk needs made once: the frustum (the caller's, else
-/// one made from rays that share an origin or an end point) and, for
+/// one made from the rays: [`Frustum::for_intersect`] or
+/// [`Frustum::for_occluded`]) and, for
 /// packets without one, the lanes laid out for the interval culling (the
 /// caller's, else made here).
 struct Prepared<'a, const N: usize> {
@@ -153,11 +154,14 @@ struct Prepared<'a, const N: usize> {
 }
 
 impl<'a, const N: usize> Prepared<'a, N> {
-    fn new(rays: &[Ray; N], live: u32, given: Option<&'a Frustum>, laid_out: Option<&'a PacketBoxes<N>>) -> Self {
-        let own = given
-            .is_none()
-            .then(|| Frustum::new(rays, live).or_else(|| Frustum::ending(rays, live)))
-            .flatten();
+    fn new(
+        rays: &[Ray; N],
+        live: u32,
+        given: Option<&'a Frustum>,
+        laid_out: Option<&'a PacketBoxes<N>>,
+        make: impl FnOnce(&[Ray; N], u32) -> Option<Frustum>,
+    ) -> Self {
+        let own = given.is_none().then(|| make(rays, live)).flatten();
         // PERF: the lanes are laid out only for the intervals, which a
         // packet with a frustum does not use (an instance with a transform
         // laid them out at every entry: terrain packets).
@@ -465,7 +469,7 @@ impl Bvh {
         if live == 0 {
             return found;
         }
-        let prep = Prepared::new(rays, live, frustum, laid_out);
+        let prep = Prepared::new(rays, live, frustum, laid_out, Frustum::for_intersect);
         let frustum = prep.frustum();
         let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);
@@ -553,7 +557,7 @@ impl Bvh {
         if live == 0 {
             return (blocked, found);
         }
-        let prep = Prepared::new(rays, live, frustum, laid_out);
+        let prep = Prepared::new(rays, live, frustum, laid_out, Frustum::for_occluded);
         let frustum = prep.frustum();
         let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);

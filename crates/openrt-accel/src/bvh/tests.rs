@@ -480,6 +480,18 @@ fn packets_answer_as_single_rays() {
         .map(|r| Ray::new(r.origin, light - r.origin, 0.0, 1.0))
         .collect();
     let random = meshgen::random_rays(1024, 4, b);
+    // Camera rays mirrored by a plane through the sphere and by a large
+    // sphere behind it (lines near a virtual apex: `Frustum::through`).
+    let mut mirrored = meshgen::mirrored_rays(&camera, Vec3::new(0.0, 0.0, 0.3), Vec3::new(0.1, 0.0, -1.0).normalize());
+    mirrored.extend(meshgen::sphere_mirrored_rays(&camera, Vec3::new(0.0, 0.0, 30.0), 29.5));
+    let with_apex = mirrored
+        .chunks_exact(16)
+        .filter(|c| crate::Frustum::through(&<[Ray; 16]>::try_from(*c).unwrap(), 0xffff).is_some())
+        .count();
+    assert!(
+        with_apex * 2 > mirrored.len() / 16,
+        "{with_apex} mirrored packets with a frustum"
+    );
     let mut axis = Vec::new();
     for k in 0..256 {
         let o = Vec3::new((k % 16) as f32 * 0.15 - 1.2, (k / 16) as f32 * 0.15 - 1.2, -3.0);
@@ -505,6 +517,7 @@ fn packets_answer_as_single_rays() {
         ("shadow", &bvh, &shadow, 100),
         ("random", &bvh, &random, 80),
         ("axis", &bvh, &axis, 50),
+        ("mirrored", &bvh, &mirrored, 200),
         ("coplanar", &grid, &grid_rays, 500),
     ] {
         for (n, h) in [

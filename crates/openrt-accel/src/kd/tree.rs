@@ -42,18 +42,14 @@ const DENSE_SHARE: usize = 3;
 
 /// The packet's frustum for whole-packet triangle culling (`frustum.rs`):
 /// the caller's (`given`), else one made from the rays on the first call
-/// (`own` keeps it) when the lanes share an origin (primary rays) or an
-/// end point (shadow rays towards one light).
-fn packet_frustum<'a, const N: usize>(
+/// (`own` keeps it by `make`): [`Frustum::for_intersect`] or
+/// [`Frustum::for_occluded`].
+fn packet_frustum<'a>(
     given: Option<&'a Frustum>,
     own: &'a std::cell::OnceCell<Option<Frustum>>,
-    rays: &[Ray; N],
-    lanes: u32,
+    make: impl FnOnce() -> Option<Frustum>,
 ) -> Option<&'a Frustum> {
-    given.or_else(|| {
-        own.get_or_init(|| Frustum::new(rays, lanes).or_else(|| Frustum::ending(rays, lanes)))
-            .as_ref()
-    })
+    given.or_else(|| own.get_or_init(make).as_ref())
 }
 
 /// Each lane's own pre-test constants.
@@ -426,7 +422,7 @@ impl KdTree {
         let mut ties = [NO_TIE; N];
         traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
             if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                let f = packet_frustum(frustum, &own, rays, live);
+                let f = packet_frustum(frustum, &own, || Frustum::for_intersect(rays, live));
                 self.leaf_packet(
                     pbr,
                     rays,
@@ -517,7 +513,7 @@ impl KdTree {
             &mut closest,
             |leaf, active, closest| {
                 if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                    let f = packet_frustum(frustum, &own, rays, live);
+                    let f = packet_frustum(frustum, &own, || Frustum::for_occluded(rays, live));
                     let hit = self.leaf_packet(
                         pbr,
                         rays,

@@ -77,8 +77,17 @@ pub struct Frustum {
     lo_v: f32x4,
     hi_v: f32x4,
     /// [`FRUSTUM_MARGIN`] times the largest coordinate of the apex and the
-    /// lanes' origins: the positional slack of a shared-target frustum.
+    /// lanes' origins, plus `radius`: the positional slack of a frustum
+    /// whose lanes do not share their origin bit for bit.
     slack: f32x4,
+    /// How far the lanes' lines may pass from the apex ([`Frustum::through`];
+    /// 0 for the others).
+    radius: f32,
+    /// The least scale of a box's slack ([`Frustum::rejects_box`]): the
+    /// apex's largest coordinate, or twice `radius` over [`FRUSTUM_MARGIN`]
+    /// where that is more (so that every box is widened by twice the
+    /// radius), in every lane.
+    box_scale: f32x4,
     /// [`FRUSTUM_MARGIN`] times the square of `1 + |u| + |v|` at the
     /// rectangle's farthest: the edge test's margin per unit of the
     /// products' magnitude ([`Frustum::edges_apart`]).
@@ -99,7 +108,7 @@ impl Frustum {
         if lanes_of(lanes).any(|l| rays[l].origin.to_array().map(f32::to_bits) != o.to_array().map(f32::to_bits)) {
             return None;
         }
-        Self::from_apex(o, rays, lanes, false, true, 0.0)
+        Self::from_apex(o, rays, lanes, false, true, 0.0, 0.0)
     }
 
     /// [`Frustum::toward`] with the target the lanes end at: the first
@@ -170,7 +179,99 @@ impl Frustum {
                 return None;
             }
         }
-        Self::from_apex(target, rays, lanes, true, false, scale)
+        Self::from_apex(target, rays, lanes, true, false, scale, 0.0)
+    }
+
+    /// The frustum of a packet's closest-hit query: lanes sharing an origin
+    /// ([`Frustum::new`]) or a virtual apex ([`Frustum::through`]).
+    #[must_use]
+    pub fn for_intersect<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
+        Self::new(rays, lanes).or_else(|| Self::through(rays, lanes))
+    }
+
+    /// The frustum of a packet's any-hit query: lanes sharing an origin
+    /// ([`Frustum::new`]) or an end point ([`Frustum::ending`]: shadow rays
+    /// towards one light).
+    #[must_use]
+    pub fn for_occluded<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
+        Self::new(rays, lanes).or_else(|| Self::ending(rays, lanes))
+    }
+
+    /// The frustum of the `lanes` of `rays` whose lines all pass near one
+    /// point behind their origins, the apex: the mirror image of the eye
+    /// for the rays a plane mirror reflects from a camera packet (and of
+    /// that image for their reflections in turn), or a small region for
+    /// rays that a gently curved mirror reflects. The apex is where the
+    /// lines of the first and last lane pass closest (in `f64`); the
+    /// frustum's `radius` bounds every line's distance from it. `None` when
+    /// a lane's origin does not lie ahead of the apex by more than the
+    /// radius, a `t_min` is below 0 or NaN, a value is not finite, or the
+    /// radius exceeds [`THROUGH_RADIUS`] of the coordinates' scale.
+    ///
+    /// NOTE: the answers do not change. Each point a lane reaches is a
+    /// point of the line from the apex along the lane's direction, in
+    /// front of the apex, moved by less than the radius (its bound is
+    /// widened by 1e-5 of the scale, beyond this test's rounding). Boxes
+    /// are widened by at least twice the radius ([`Frustum::rejects_box`])
+    /// and triangles must clear it (the half-space test of shadow rays),
+    /// on top of the usual margins.
+    #[must_use]
+    pub fn through<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
+        if off() || lanes.count_ones() < 2 {
+            return None;
+        }
+        let (i, j) = (lanes.trailing_zeros() as usize, 31 - lanes.leading_zeros() as usize);
+        let apex = closest_point(&rays[i], &rays[j])?;
+        if !apex.is_finite() {
+            return None;
+        }
+        let (o, d) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.dir));
+        let quad = |v: &[f32; N], c: usize| f32x4::new([v[c], v[c + 1], v[c + 2], v[c + 3]]);
+        let max3 = |v: [f32x4; 3]| v[0].abs().fast_max(v[1].abs()).fast_max(v[2].abs());
+        const { assert!(N.is_multiple_of(4), "packets are whole registers of four lanes") };
+        let (px, py, pz) = (f32x4::splat(apex.x), f32x4::splat(apex.y), f32x4::splat(apex.z));
+        // Per lane: the origin's largest coordinate, the line's distance
+        // from the apex (|v x d| / |d|, v from the apex to the origin) and
+        // how far the origin lies ahead of the apex (v . d / |d|).
+        let (mut scale4, mut far4, mut near4) = (f32x4::ZERO, f32x4::ZERO, f32x4::splat(f32::INFINITY));
+        let mut bad = false;
+        for c in (0..N).step_by(4) {
+            let on = lane_mask(lanes >> c);
+            let origin = [quad(&o[0], c), quad(&o[1], c), quad(&o[2], c)];
+            let (dx, dy, dz) = (quad(&d[0], c), quad(&d[1], c), quad(&d[2], c));
+            let (vx, vy, vz) = (origin[0] - px, origin[1] - py, origin[2] - pz);
+            let (cx, cy, cz) = (vy * dz - vz * dy, vz * dx - vx * dz, vx * dy - vy * dx);
+            let len = (dx * dx + dy * dy + dz * dz).sqrt();
+            let off_line = (cx * cx + cy * cy + cz * cz).sqrt() / len;
+            let ahead = (vx * dx + vy * dy + vz * dz) / len;
+            let t_min = f32x4::new(std::array::from_fn(|k| rays[c + k].t_min));
+            // NOTE: NaN fails every compare; `fine` is false for it.
+            let fine = off_line.is_finite() & ahead.is_finite() & max3(origin).is_finite() & t_min.simd_ge(f32x4::ZERO);
+            bad |= (on & !fine).to_bitmask() != 0;
+            scale4 = on.bitselect(scale4.fast_max(max3(origin)), scale4);
+            far4 = on.bitselect(far4.fast_max(off_line), far4);
+            near4 = on.bitselect(near4.fast_min(ahead), near4);
+        }
+        if bad {
+            return None;
+        }
+        let scale = scale4.to_array().into_iter().fold(apex.abs().max_element(), f32::max);
+        let far = far4.to_array().into_iter().fold(0.0, f32::max);
+        let near = near4.to_array().into_iter().fold(f32::INFINITY, f32::min);
+        let radius = far * 1.001 + 1e-5 * scale;
+        // NOTE: a NaN fails both compares.
+        let fits = radius <= THROUGH_RADIUS * scale && near > radius;
+        if !fits {
+            return None;
+        }
+        Self::from_apex(apex, rays, lanes, false, false, scale, radius)
+    }
+
+    /// How far the lanes' lines may pass from the apex: 0 except for a
+    /// frustum of [`Frustum::through`].
+    #[must_use]
+    pub fn radius(&self) -> f32 {
+        self.radius
     }
 
     /// `true` for the frustum of rays leaving one origin (primary rays),
@@ -192,6 +293,7 @@ impl Frustum {
         negate: bool,
         shared_origin: bool,
         scale: f32,
+        radius: f32,
     ) -> Option<Self> {
         if lanes == 0 {
             return None;
@@ -258,7 +360,9 @@ impl Frustum {
             hi_u: f32x4::splat(hi_u + m),
             lo_v: f32x4::splat(lo_v - m),
             hi_v: f32x4::splat(hi_v + m),
-            slack: f32x4::splat(FRUSTUM_MARGIN * scale),
+            slack: f32x4::splat(FRUSTUM_MARGIN * scale + radius),
+            radius,
+            box_scale: f32x4::splat(o.abs().max_element().max(2.0 * radius / FRUSTUM_MARGIN)),
             edge_margin: {
                 let reach = 1.0 + (lo_u.abs().max(hi_u.abs()) + m) + (lo_v.abs().max(hi_v.abs()) + m);
                 f32x4::splat(FRUSTUM_MARGIN * reach * reach)
@@ -268,15 +372,21 @@ impl Frustum {
 
     /// `true` when no lane can reach any point of `bounds` (an instance's
     /// world box): the box, widened by [`FRUSTUM_MARGIN`] of its largest
-    /// coordinate (far more than the rounding of the transforms that take
-    /// rays to object space), lies wholly behind the apex, or its part in
+    /// coordinate or the apex's (far more than the rounding of the
+    /// transforms that take rays to object space), and by at least twice
+    /// the [`Frustum::radius`], lies wholly behind the apex, or its part in
     /// front of the apex lies beyond one side of the rectangle.
     #[must_use]
     pub fn rejects_box(&self, bounds: &crate::geom::aabb::Aabb) -> bool {
         let [k, a, b] = self.axes;
         let s = self.sign.to_array()[0];
         let o = self.origin;
-        let scale = bounds.min.abs().max(bounds.max.abs()).max(o.abs()).max_element();
+        let scale = bounds
+            .min
+            .abs()
+            .max(bounds.max.abs())
+            .max_element()
+            .max(self.box_scale.to_array()[0]);
         let slack = FRUSTUM_MARGIN * scale;
         // The widened box's range along an axis, relative to the origin,
         // the dominant axis pointing forward.
@@ -314,7 +424,7 @@ impl Frustum {
         let (lo, hi) = (quad.min, quad.max);
         // `max` over the box's corners and the origin, as the scalar
         // `max_element` (finite boxes: no NaN to order).
-        let scale = quad.largest_coordinate().fast_max(f32x4::splat(o.abs().max_element()));
+        let scale = quad.largest_coordinate().fast_max(self.box_scale);
         let slack = f32x4::splat(FRUSTUM_MARGIN) * scale;
         let forward = self.sign.to_array()[0] > 0.0;
         let range = |axis: usize| {
@@ -445,6 +555,37 @@ impl Frustum {
     }
 }
 
+/// The largest radius of a [`Frustum::through`], relative to the largest
+/// coordinate of its apex and its lanes' origins: packets whose lines pass
+/// farther from one point get no frustum.
+pub const THROUGH_RADIUS: f32 = 1e-2;
+
+/// Four lanes of a mask as `f32x4` lane masks: lane `i` set when bit `i` is.
+#[inline]
+fn lane_mask(bits: u32) -> f32x4 {
+    f32x4::new(std::array::from_fn(|i| {
+        f32::from_bits(if bits & (1 << i) != 0 { u32::MAX } else { 0 })
+    }))
+}
+
+/// The point of `a`'s line nearest to `b`'s line, computed in `f64`;
+/// `None` when the lines are parallel to within rounding.
+fn closest_point(a: &Ray, b: &Ray) -> Option<glam::Vec3> {
+    let (oa, da) = (a.origin.as_dvec3(), a.dir.as_dvec3());
+    let (ob, db) = (b.origin.as_dvec3(), b.dir.as_dvec3());
+    let w = oa - ob;
+    let (aa, ab, bb) = (da.dot(da), da.dot(db), db.dot(db));
+    let (aw, bw) = (da.dot(w), db.dot(w));
+    let den = aa * bb - ab * ab;
+    // NOTE: a NaN fails the compare.
+    let apart = den > 1e-12 * aa * bb;
+    if !apart {
+        return None;
+    }
+    let s = (ab * bw - bb * aw) / den;
+    Some((oa + da * s).as_vec3())
+}
+
 #[cfg(test)]
 mod tests {
     use glam::Vec3;
@@ -565,7 +706,7 @@ mod tests {
             // The rectangle's own refusals (lanes pointing both ways along
             // its axis) are the other test's.
             let want = lane_loop(&rays, lanes, target)
-                .filter(|&s| Frustum::from_apex(target, &rays, lanes, true, false, s).is_some());
+                .filter(|&s| Frustum::from_apex(target, &rays, lanes, true, false, s, 0.0).is_some());
             let got = Frustum::toward(&rays, lanes, target).map(|f| f.slack.to_array()[0].to_bits());
             assert_eq!(
                 got,
@@ -944,5 +1085,178 @@ mod tests {
         assert!(Frustum::new(&p, 0).is_none());
         // Rays that do not end at the target.
         assert!(Frustum::toward(&p, u32::from(u16::MAX), Vec3::new(0.0, 0.0, -1.0)).is_none());
+    }
+
+    /// The camera packets' rays reflected by the plane `z = plane_z`
+    /// ([`meshgen::mirrored_rays`]), packet by packet.
+    fn mirrored(packets: &[[Ray; 16]], plane_z: f32) -> Vec<[Ray; 16]> {
+        let at = Vec3::new(0.0, 0.0, plane_z);
+        packets
+            .iter()
+            .filter_map(|p| meshgen::mirrored_rays(p, at, Vec3::Z).try_into().ok())
+            .collect()
+    }
+
+    /// The same off a sphere ([`meshgen::sphere_mirrored_rays`]): packets
+    /// whose every lane meets it.
+    fn curved(packets: &[[Ray; 16]], centre: Vec3, radius: f32) -> Vec<[Ray; 16]> {
+        packets
+            .iter()
+            .filter_map(|p| meshgen::sphere_mirrored_rays(p, centre, radius).try_into().ok())
+            .collect()
+    }
+
+    #[test]
+    fn mirrored_packets_pass_through_the_eyes_image() {
+        for eye in [Vec3::new(0.1, 0.5, 2.0), Vec3::new(3.0e3, -2.0e3, 2.5e3)] {
+            let packets = blocks(eye, eye + Vec3::new(0.05, -0.1, -1.0));
+            let image = Vec3::new(eye.x, eye.y, 2.0 * (eye.z - 3.0) - eye.z);
+            for p in mirrored(&packets, eye.z - 3.0) {
+                let f = Frustum::through(&p, u32::from(u16::MAX)).expect("a plane mirror's rays share a virtual eye");
+                assert!(!f.is_shared_origin());
+                let scale = image.abs().max_element().max(eye.abs().max_element());
+                assert!(f.radius() < 1e-4 * scale, "radius {} at scale {scale}", f.radius());
+                assert!(
+                    (f.origin - image).length() < 1e-3 * scale,
+                    "apex {} against {image}",
+                    f.origin
+                );
+            }
+        }
+    }
+
+    /// Mirrored and curved-mirror packets: every triangle and box their
+    /// frustum culls is missed by every lane's exact test (triangles near
+    /// the mirror, touching lanes, behind it, and a soup ahead), and most
+    /// of the soup is culled.
+    #[test]
+    fn virtual_apex_frusta_cull_only_what_no_lane_reaches() {
+        let mut rng = SmallRng::seed_from_u64(23);
+        let eye = Vec3::new(0.1, 0.5, 2.0);
+        let packets = blocks(eye, Vec3::new(0.0, -0.5, -5.0));
+        let bounces: Vec<[Ray; 16]> = mirrored(&packets, -3.0)
+            .into_iter()
+            .chain(curved(&packets, Vec3::new(0.0, -0.5, -23.0), 20.0))
+            .collect();
+        let b = Aabb::new(Vec3::new(-6.0, -6.0, -8.0), Vec3::new(6.0, 6.0, 8.0));
+        let soup = meshgen::random_soup(400, 41, b, 0.6);
+        let (mut made, mut culled, mut n, mut boxes_culled) = (0, 0, 0, 0);
+        for p in &bounces {
+            let Some(f) = Frustum::through(p, u32::from(u16::MAX)) else {
+                continue;
+            };
+            made += 1;
+            let mut tris = soup.clone();
+            for r in p {
+                // Small triangles touching a lane's ray, turned every way,
+                // just off the mirror and farther on.
+                for t in [1e-3, rng.random_range(0.1..1.0), rng.random_range(1.0..8.0)] {
+                    let v = r.origin + r.dir * t;
+                    let mut e = || {
+                        Vec3::new(
+                            rng.random_range(-1.0..1.0),
+                            rng.random_range(-1.0..1.0),
+                            rng.random_range(-1.0..1.0),
+                        ) * 1e-3
+                    };
+                    let (e1, e2) = (e(), e());
+                    tris.push([v, v + e1, v + e2]);
+                }
+                // Behind the mirror, on the lane's line.
+                let v = r.origin - r.dir * rng.random_range(0.01..2.0);
+                tris.push([v, v + Vec3::new(0.02, 0.0, 0.0), v + Vec3::new(0.0, 0.02, 0.0)]);
+            }
+            for chunk in (0..tris.len() as u32).collect::<Vec<_>>().chunks(4) {
+                let block = TriBlock::pack(chunk, &tris);
+                let mask = f.rejects(&block);
+                let quad = BoxQuad::pack(&std::array::from_fn::<Aabb, 4, _>(|j| {
+                    Aabb::from_points(&tris[chunk[j.min(chunk.len() - 1)] as usize])
+                }));
+                let box_mask = f.rejects_box_quad(&quad);
+                for (j, &id) in chunk.iter().enumerate() {
+                    let t = &tris[id as usize];
+                    let culled_box = f.rejects_box(&Aabb::from_points(t));
+                    assert_eq!(
+                        culled_box,
+                        box_mask & (1 << j) != 0,
+                        "box {id}: quad and single tests differ"
+                    );
+                    n += 1;
+                    culled += usize::from(mask & (1 << j) != 0);
+                    boxes_culled += usize::from(culled_box);
+                    if mask & (1 << j) != 0 || culled_box {
+                        for r in p {
+                            assert!(
+                                intersect_triangle(r, t, r.t_max).is_none(),
+                                "triangle {id} culled but hit"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            made * 2 > bounces.len(),
+            "only {made} of {} packets got a frustum",
+            bounces.len()
+        );
+        assert!(
+            culled * 2 > n && boxes_culled * 2 > n,
+            "{culled} triangles, {boxes_culled} boxes of {n} culled"
+        );
+    }
+
+    #[test]
+    fn packets_without_a_virtual_apex_get_no_frustum() {
+        let eye = Vec3::new(0.1, 0.5, 2.0);
+        let p = mirrored(&blocks(eye, Vec3::new(0.0, 0.0, -5.0)), -3.0)[5];
+        let all = u32::from(u16::MAX);
+        assert!(Frustum::through(&p, all).is_some());
+        // One lane, or none.
+        assert!(Frustum::through(&p, 1 << 4).is_none());
+        assert!(Frustum::through(&p, 0).is_none());
+        // A lane reaching behind its origin, or with a NaN interval.
+        let mut back = p;
+        back[7] = p[7].with_interval(-1.0, f32::INFINITY);
+        assert!(Frustum::through(&back, all).is_none());
+        back[7] = p[7];
+        back[7].t_min = f32::NAN;
+        assert!(Frustum::through(&back, all).is_none());
+        // A NaN origin.
+        let mut nan = p;
+        nan[2] = Ray::infinite(Vec3::new(f32::NAN, 0.0, 0.0), p[2].dir);
+        assert!(Frustum::through(&nan, all).is_none());
+        // Lines that meet ahead of their origins (converging rays).
+        let focus = Vec3::new(0.0, 0.0, 10.0);
+        let converging: [Ray; 16] = std::array::from_fn(|l| {
+            let o = Vec3::new((l % 4) as f32 - 1.5, (l / 4) as f32 - 1.5, 0.0);
+            Ray::infinite(o, focus - o)
+        });
+        assert!(Frustum::through(&converging, all).is_none());
+        // Scattered lines: farther from any point than `THROUGH_RADIUS`.
+        let mut rng = SmallRng::seed_from_u64(3);
+        let scattered: [Ray; 16] = std::array::from_fn(|_| {
+            let o = Vec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), 0.0);
+            Ray::infinite(
+                o,
+                Vec3::new(rng.random_range(-0.3..0.3), rng.random_range(-0.3..0.3), 1.0),
+            )
+        });
+        assert!(Frustum::through(&scattered, all).is_none());
+        // Lines passing their offset from one point (whose largest
+        // coordinate, 100, is the scale): twice `THROUGH_RADIUS` of the
+        // scale away, refused; a fifth of it, kept.
+        let apex = Vec3::new(0.0, 0.0, -100.0);
+        let fan = |offset: f32| -> [Ray; 16] {
+            std::array::from_fn(|l| {
+                let d = Vec3::new((l % 4) as f32 * 0.01 - 0.015, (l / 4) as f32 * 0.01 - 0.015, 1.0);
+                let side = d.cross(Vec3::Y).normalize() * if l % 2 == 0 { offset } else { -offset };
+                Ray::infinite(apex + side + d * 100.0, d)
+            })
+        };
+        assert!(Frustum::through(&fan(THROUGH_RADIUS * 200.0), all).is_none());
+        assert!(
+            Frustum::through(&fan(THROUGH_RADIUS * 20.0), all).is_some_and(|f| f.radius() <= THROUGH_RADIUS * 100.0)
+        );
     }
 }

@@ -171,6 +171,45 @@ pub fn camera_rays(eye: Vec3, at: Vec3, w: usize, h: usize, fov_deg: f32) -> Vec
     rays
 }
 
+/// `rays` reflected where they meet the plane through `point` with unit
+/// normal `normal` (a plane mirror), as a renderer's bounces: from the
+/// hit over `[0, inf)`; rays that miss the plane (or run along it) are
+/// left out. The reflections of a camera's rays pass near one point, the
+/// eye's mirror image.
+#[must_use]
+pub fn mirrored_rays(rays: &[Ray], point: Vec3, normal: Vec3) -> Vec<Ray> {
+    rays.iter()
+        .filter_map(|r| {
+            let t = (point - r.origin).dot(normal) / r.dir.dot(normal);
+            (t > 0.0 && t.is_finite()).then(|| {
+                let q = r.origin + r.dir * t;
+                Ray::infinite(q, r.dir - 2.0 * r.dir.dot(normal) * normal)
+            })
+        })
+        .collect()
+}
+
+/// `rays` reflected off the outside of the sphere at `centre` of `radius`
+/// (a curved mirror), from the hit over `[0, inf)`; rays that miss it are
+/// left out.
+#[must_use]
+pub fn sphere_mirrored_rays(rays: &[Ray], centre: Vec3, radius: f32) -> Vec<Ray> {
+    rays.iter()
+        .filter_map(|r| {
+            let d = r.dir.normalize();
+            let oc = r.origin - centre;
+            let b = oc.dot(d);
+            let disc = b * b - (oc.length_squared() - radius * radius);
+            let t = -b - disc.max(0.0).sqrt();
+            (disc >= 0.0 && t > 0.0).then(|| {
+                let q = r.origin + d * t;
+                let n = (q - centre).normalize();
+                Ray::infinite(q, d - 2.0 * d.dot(n) * n)
+            })
+        })
+        .collect()
+}
+
 /// `n` points of random triangles of `tris`, each a vertex, an edge
 /// midpoint or a centroid: where a triangle test that is not watertight
 /// lets rays through the shared edges and vertices of a closed mesh.
