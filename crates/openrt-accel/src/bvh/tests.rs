@@ -486,7 +486,7 @@ fn packets_answer_as_single_rays() {
     mirrored.extend(meshgen::sphere_mirrored_rays(&camera, Vec3::new(0.0, 0.0, 30.0), 29.5));
     let with_apex = mirrored
         .chunks_exact(16)
-        .filter(|c| crate::Frustum::through(&<[Ray; 16]>::try_from(*c).unwrap(), 0xffff).is_some())
+        .filter(|c| crate::packet::frustum::Frustum::through(&<[Ray; 16]>::try_from(*c).unwrap(), 0xffff).is_some())
         .count();
     assert!(
         with_apex * 2 > mirrored.len() / 16,
