@@ -140,12 +140,7 @@ impl Frustum {
         // loop was 5% of a shadow-query profile).
         let (o, d) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.dir));
         let quad = |v: &[f32; N], c: usize| f32x4::new([v[c], v[c + 1], v[c + 2], v[c + 3]]);
-        let on = |c: usize| {
-            let bits = lanes >> c;
-            f32x4::new(std::array::from_fn(|i| {
-                f32::from_bits(if bits & (1 << i) != 0 { u32::MAX } else { 0 })
-            }))
-        };
+        let on = |c: usize| lane_mask(lanes >> c);
         let max3 = |v: [f32x4; 3]| v[0].abs().fast_max(v[1].abs()).fast_max(v[2].abs());
         // The largest coordinate of the apex and the lanes' origins (a NaN
         // origin ends the lane off target below).
@@ -317,9 +312,7 @@ impl Frustum {
             if on_bits == 0 {
                 continue;
             }
-            let on = f32x4::new(std::array::from_fn(|i| {
-                f32::from_bits(if on_bits & (1 << i) != 0 { u32::MAX } else { 0 })
-            }));
+            let on = lane_mask(on_bits);
             let axis = |x: usize| f32x4::new(std::array::from_fn(|i| rays[c + i].dir[x])) * sgv;
             let (dk, da, db) = (axis(k), axis(a), axis(b));
             // NOTE: a zero or NaN component along `k` fails the test.
@@ -561,7 +554,9 @@ impl Frustum {
 pub const THROUGH_RADIUS: f32 = 1e-2;
 
 /// Four lanes of a mask as `f32x4` lane masks: lane `i` set when bit `i` is.
-#[inline]
+// PERF: forced inline, as the closures it replaces in the hot frusta were.
+#[allow(clippy::inline_always)]
+#[inline(always)]
 fn lane_mask(bits: u32) -> f32x4 {
     f32x4::new(std::array::from_fn(|i| {
         f32::from_bits(if bits & (1 << i) != 0 { u32::MAX } else { 0 })
