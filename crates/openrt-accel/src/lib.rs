@@ -60,7 +60,7 @@ pub use kd::tree::{BuilderKind, KdTree, TreeStats};
 pub use packet::boxes::{BOX_SLACK, PacketBoxes, ray_reaches, ray_reaches_quad};
 pub use packet::frustum::{FRUSTUM_MARGIN, Frustum, THROUGH_RADIUS, frustum_culling, set_frustum_culling};
 pub use packet::interval::PacketInterval;
-pub use packet::traverse::traverse_packet;
+pub use packet::traverse::{traverse_packet, traverse_packet_laid};
 #[cfg(target_arch = "x86_64")]
 pub use packet::width::avx2;
 pub use packet::width::{MAX_LANES, PacketWidth, lanes_mask, lanes_of, sign_groups};

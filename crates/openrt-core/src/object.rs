@@ -202,15 +202,8 @@ impl ObjectTree {
 
     /// See [`KdTree::leaf_blocks_packet`].
     #[must_use]
-    pub fn leaf_blocks_packet<const N: usize>(
-        &self,
-        rays: &[Ray; N],
-        lanes: u32,
-        leaf: KdNode,
-        margin: f32,
-        frustum: Option<&Frustum>,
-    ) -> u32 {
-        both!(self, t => t.leaf_blocks_packet(rays, lanes, leaf, margin, frustum))
+    pub fn leaf_blocks_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32, leaf: KdNode, margin: f32) -> u32 {
+        both!(self, t => t.leaf_blocks_packet(rays, lanes, leaf, margin))
     }
 
     /// See [`KdTree::intersect_packet_in`].

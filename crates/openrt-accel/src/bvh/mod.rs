@@ -159,9 +159,9 @@ impl<'a, const N: usize> Prepared<'a, N> {
         live: u32,
         given: Option<&'a Frustum>,
         laid_out: Option<&'a PacketBoxes<N>>,
-        make: impl FnOnce(&[Ray; N], u32) -> Option<Frustum>,
+        make: impl FnOnce(&[Ray; N], Option<&PacketBoxes<N>>, u32) -> Option<Frustum>,
     ) -> Self {
-        let own = given.is_none().then(|| make(rays, live)).flatten();
+        let own = given.is_none().then(|| make(rays, laid_out, live)).flatten();
         // PERF: the lanes are laid out only for the intervals, which a
         // packet with a frustum does not use (an instance with a transform
         // laid them out at every entry: terrain packets).
@@ -415,15 +415,8 @@ impl Bvh {
 
     /// As [`crate::KdTree::leaf_blocks_packet`].
     #[must_use]
-    pub fn leaf_blocks_packet<const N: usize>(
-        &self,
-        rays: &[Ray; N],
-        lanes: u32,
-        leaf: KdNode,
-        margin: f32,
-        frustum: Option<&Frustum>,
-    ) -> u32 {
-        self.lists().blocks_packet(rays, lanes, leaf, margin, frustum)
+    pub fn leaf_blocks_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32, leaf: KdNode, margin: f32) -> u32 {
+        self.lists().blocks_packet(rays, lanes, leaf, margin)
     }
 
     fn lists(&self) -> LeafLists<'_> {
@@ -469,11 +462,17 @@ impl Bvh {
         if live == 0 {
             return found;
         }
-        let prep = Prepared::new(rays, live, frustum, laid_out, Frustum::for_intersect);
+        let prep = Prepared::new(rays, live, frustum, laid_out, |rays, laid, live| match laid {
+            Some(b) => Frustum::for_intersect_laid(rays, b, live),
+            None => Frustum::for_intersect(rays, live),
+        });
         let frustum = prep.frustum();
         let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);
-        let pbr = PacketBlockRay::new(rays, live);
+        let pbr = match laid_out {
+            Some(b) => PacketBlockRay::from_laid(rays, b, live),
+            None => PacketBlockRay::new(rays, live),
+        };
         let mut brs: Option<[BlockRay; N]> = None;
         let mut ties = [NO_TIE; N];
         packet::walk_packet(&self.nodes, &lr, live, closest, &cull, |off, count, active, closest| {
@@ -557,11 +556,17 @@ impl Bvh {
         if live == 0 {
             return (blocked, found);
         }
-        let prep = Prepared::new(rays, live, frustum, laid_out, Frustum::for_occluded);
+        let prep = Prepared::new(rays, live, frustum, laid_out, |rays, laid, live| match laid {
+            Some(b) => Frustum::for_occluded_laid(rays, b, live),
+            None => Frustum::for_occluded(rays, live),
+        });
         let frustum = prep.frustum();
         let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);
-        let pbr = PacketBlockRay::new(rays, live);
+        let pbr = match laid_out {
+            Some(b) => PacketBlockRay::from_laid(rays, b, live),
+            None => PacketBlockRay::new(rays, live),
+        };
         let mut brs: Option<[BlockRay; N]> = None;
         blocked |= packet::walk_packet(
             &self.nodes,

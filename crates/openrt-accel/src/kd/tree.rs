@@ -19,7 +19,7 @@ use crate::leaf::blocks::{
 use crate::leaf::mailbox::TriMailbox;
 use crate::packet::boxes::PacketBoxes;
 use crate::packet::frustum::Frustum;
-use crate::packet::traverse::traverse_packet;
+use crate::packet::traverse::traverse_packet_laid;
 use crate::packet::triangle::{LaneHits, PacketBlockRay};
 use crate::packet::width::lanes_of;
 
@@ -345,18 +345,10 @@ impl KdTree {
     }
 
     /// [`KdTree::leaf_blocks`] for the `lanes` of a packet: the lanes blocked
-    /// so. `frustum`: the lanes' frustum when the caller has it (triangles
-    /// that no lane can reach are skipped).
+    /// so.
     #[must_use]
-    pub fn leaf_blocks_packet<const N: usize>(
-        &self,
-        rays: &[Ray; N],
-        lanes: u32,
-        leaf: KdNode,
-        margin: f32,
-        frustum: Option<&Frustum>,
-    ) -> u32 {
-        self.lists().blocks_packet(rays, lanes, leaf, margin, frustum)
+    pub fn leaf_blocks_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32, leaf: KdNode, margin: f32) -> u32 {
+        self.lists().blocks_packet(rays, lanes, leaf, margin)
     }
 
     /// The leaf lists, for the queries shared with the BVH.
@@ -413,56 +405,68 @@ impl KdTree {
         // packet) pre-test each triangle against all lanes at once, unless
         // few lanes reach the leaf: then each lane pre-tests four
         // triangles at a time on its own (`dense`).
-        let pbr = PacketBlockRay::new(rays, live);
+        let pbr = match laid_out {
+            Some(b) => PacketBlockRay::from_laid(rays, b, live),
+            None => PacketBlockRay::new(rays, live),
+        };
         let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         let mut tested = TriMailbox::new();
         // Each lane's best triangle in this walk, for the tie rule.
         let mut ties = [NO_TIE; N];
-        traverse_packet(&self.nodes, rays, live, &t0, &t1, closest, |leaf, active, closest| {
-            if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                let f = packet_frustum(frustum, &own, || Frustum::for_intersect(rays, live));
-                self.leaf_packet(
-                    pbr,
-                    rays,
-                    f,
-                    active,
-                    leaf,
-                    closest,
-                    Some(&mut ties),
-                    Some(&mut tested),
-                    |h, prim, closest| {
-                        for l in lanes_of(h.hit) {
-                            let (t, b1, b2) = h.lane(l);
-                            closest[l] = t;
-                            hits[l] = Some(Hit { t, prim, b1, b2 });
-                        }
-                        found |= h.hit;
-                        0
-                    },
-                );
-                return 0;
-            }
-            let brs = brs.get_or_insert_with(|| block_rays(rays));
-            for l in lanes_of(active) {
-                if let Some((prim, (t, b1, b2))) = leaf_closest(
-                    &rays[l],
-                    &brs[l],
-                    leaf,
-                    &self.prim_ids,
-                    &self.blocks,
-                    closest[l],
-                    ties[l],
-                ) {
-                    ties[l] = prim;
-                    closest[l] = t;
-                    hits[l] = Some(Hit { t, prim, b1, b2 });
-                    found |= 1 << l;
+        traverse_packet_laid(
+            &self.nodes,
+            rays,
+            laid_out,
+            live,
+            &t0,
+            &t1,
+            closest,
+            |leaf, active, closest| {
+                if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
+                    let f = packet_frustum(frustum, &own, || Frustum::for_intersect(rays, live));
+                    self.leaf_packet(
+                        pbr,
+                        rays,
+                        f,
+                        active,
+                        leaf,
+                        closest,
+                        Some(&mut ties),
+                        Some(&mut tested),
+                        |h, prim, closest| {
+                            for l in lanes_of(h.hit) {
+                                let (t, b1, b2) = h.lane(l);
+                                closest[l] = t;
+                                hits[l] = Some(Hit { t, prim, b1, b2 });
+                            }
+                            found |= h.hit;
+                            0
+                        },
+                    );
+                    return 0;
                 }
-            }
-            0
-        });
+                let brs = brs.get_or_insert_with(|| block_rays(rays));
+                for l in lanes_of(active) {
+                    if let Some((prim, (t, b1, b2))) = leaf_closest(
+                        &rays[l],
+                        &brs[l],
+                        leaf,
+                        &self.prim_ids,
+                        &self.blocks,
+                        closest[l],
+                        ties[l],
+                    ) {
+                        ties[l] = prim;
+                        closest[l] = t;
+                        hits[l] = Some(Hit { t, prim, b1, b2 });
+                        found |= 1 << l;
+                    }
+                }
+                0
+            },
+        );
         found
     }
 
@@ -498,15 +502,19 @@ impl KdTree {
         if live == 0 {
             return (0, None);
         }
-        let pbr = PacketBlockRay::new(rays, live);
+        let pbr = match laid_out {
+            Some(b) => PacketBlockRay::from_laid(rays, b, live),
+            None => PacketBlockRay::new(rays, live),
+        };
         let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
         let mut found = None;
         let mut tested = TriMailbox::new();
-        let blocked = traverse_packet(
+        let blocked = traverse_packet_laid(
             &self.nodes,
             rays,
+            laid_out,
             live,
             &t0,
             &t1,
@@ -830,7 +838,7 @@ mod tests {
         ] {
             assert!(!tree.leaf_blocks(r, bogus, margin));
             let pk: [Ray; 4] = std::array::from_fn(|l| rays[l]);
-            assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, bogus, margin, None), 0);
+            assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, bogus, margin), 0);
         }
     }
 
@@ -862,7 +870,7 @@ mod tests {
             down(0.25, 0.25, 0.50005),
             down(0.3, 0.2, 1.0),
         ];
-        assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, leaf, m, None), 0b1001);
-        assert_eq!(tree.leaf_blocks_packet(&pk, 0b0110, leaf, m, None), 0);
+        assert_eq!(tree.leaf_blocks_packet(&pk, 0xF, leaf, m), 0b1001);
+        assert_eq!(tree.leaf_blocks_packet(&pk, 0b0110, leaf, m), 0);
     }
 }

@@ -465,14 +465,7 @@ impl LeafLists<'_> {
 
     /// [`LeafLists::blocks_ray`] for the `lanes` of a packet: the lanes
     /// blocked so.
-    pub(crate) fn blocks_packet<const N: usize>(
-        &self,
-        rays: &[Ray; N],
-        lanes: u32,
-        leaf: KdNode,
-        margin: f32,
-        frustum: Option<&Frustum>,
-    ) -> u32 {
+    pub(crate) fn blocks_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32, leaf: KdNode, margin: f32) -> u32 {
         if !self.owns(leaf) || lanes == 0 {
             return 0;
         }
@@ -483,10 +476,11 @@ impl LeafLists<'_> {
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
         let mut got = 0u32;
         // One leaf names no triangle twice: no mailbox.
+        // PERF: no frustum: a leaf's few triangles cost less than making one.
         leaf_packet(
             &pbr,
             rays,
-            frustum,
+            None,
             lanes,
             leaf,
             self.ids,

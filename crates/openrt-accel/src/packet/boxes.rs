@@ -24,6 +24,7 @@ use crate::geom::aabb::Aabb;
 use crate::geom::box_quad::BoxQuad;
 use crate::geom::numeric::gamma;
 use crate::geom::ray::Ray;
+use crate::packet::width::by_axis;
 
 /// Relative widening of the boxes tested by [`PacketBoxes::reaching`].
 pub const BOX_SLACK: f32 = 1e-4;
@@ -53,8 +54,10 @@ impl<const N: usize> PacketBoxes<N> {
         for (l, r) in rays.iter().enumerate() {
             valid |= u32::from(r.is_valid()) << l;
         }
-        let o: [[f32; N]; 3] = std::array::from_fn(|a| std::array::from_fn(|l| rays[l].origin[a]));
-        let inv: [[f32; N]; 3] = std::array::from_fn(|a| std::array::from_fn(|l| rays[l].inv_dir[a]));
+        // PERF: each field's three values of four lanes transposed at once
+        // (`by_axis`), not gathered value by value.
+        let o = by_axis(rays, |r| r.origin);
+        let inv = by_axis(rays, |r| r.inv_dir);
         // Testable lanes and the largest coordinate of their origins.
         // PERF: four lanes at a time on the laid-out values (a lane loop of
         // finiteness tests was half of this function's samples).
@@ -86,7 +89,7 @@ impl<const N: usize> PacketBoxes<N> {
         Self {
             o,
             inv,
-            dir: std::array::from_fn(|a| std::array::from_fn(|l| rays[l].dir[a])),
+            dir: by_axis(rays, |r| r.dir),
             t_min: std::array::from_fn(|l| rays[l].t_min),
             t_max: std::array::from_fn(|l| rays[l].t_max),
             valid,
@@ -145,6 +148,39 @@ impl<const N: usize> PacketBoxes<N> {
         }
         // Lanes that could not be tested pass.
         (hit & check) | (lanes & !self.testable)
+    }
+}
+
+impl<const N: usize> PacketBoxes<N> {
+    /// The laid-out origins, directions and the rays' own bounds.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn rows(&self) -> (&[[f32; N]; 3], &[[f32; N]; 3], &[f32; N], &[f32; N]) {
+        (&self.o, &self.dir, &self.t_min, &self.t_max)
+    }
+
+    /// [`crate::sign_groups`] of the rays these boxes were made from, read
+    /// from the laid-out directions: the same groups, bit for bit.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    #[must_use]
+    pub(crate) fn sign_groups(&self, mask: u32) -> ([u32; 8], u32) {
+        let (mut neg, mut zero) = ([0u32; 3], 0u32);
+        for c in (0..N - N % 4).step_by(4) {
+            for (a, neg) in neg.iter_mut().enumerate() {
+                let d = &self.dir[a];
+                let v = f32x4::new([d[c], d[c + 1], d[c + 2], d[c + 3]]);
+                *neg |= v.to_bitmask() << c;
+                zero |= v.simd_eq(f32x4::ZERO).to_bitmask() << c;
+            }
+        }
+        for l in N - N % 4..N {
+            let d = [self.dir[0][l], self.dir[1][l], self.dir[2][l]];
+            for a in 0..3 {
+                neg[a] |= u32::from(d[a].is_sign_negative()) << l;
+            }
+            zero |= u32::from(d[0] == 0.0 || d[1] == 0.0 || d[2] == 0.0) << l;
+        }
+        crate::packet::width::groups_of(mask, neg, zero)
     }
 }
 
@@ -383,6 +419,42 @@ mod tests {
             );
         }
         let mut rng = SmallRng::seed_from_u64(12);
+        for _ in 0..3000 {
+            check::<16>(&mut rng);
+            check::<8>(&mut rng);
+            check::<6>(&mut rng);
+        }
+    }
+
+    /// The laid-out sign groups are the rays' ([`crate::sign_groups`]):
+    /// random lanes with zero (0.0 and -0.0), infinite and NaN direction
+    /// components, partial masks, widths with lanes left over.
+    #[test]
+    fn laid_out_sign_groups_are_the_rays() {
+        fn check<const N: usize>(rng: &mut SmallRng) {
+            let world = Aabb::new(Vec3::splat(-4.0), Vec3::splat(4.0));
+            let rays: [Ray; N] = std::array::from_fn(|_| {
+                let r = meshgen::random_rays(1, rng.random(), world)[0];
+                let mut d = r.dir;
+                match rng.random_range(0..8) {
+                    0 => d.y = 0.0,
+                    1 => d.x = -0.0,
+                    2 => d.z = f32::NEG_INFINITY,
+                    3 => d.z = f32::NAN,
+                    4 => d.x = -f32::NAN,
+                    _ => {}
+                }
+                Ray::new(r.origin, d, 0.0, f32::INFINITY)
+            });
+            let lanes = rng.random::<u32>() & (u32::MAX >> (32 - N));
+            let b = PacketBoxes::new(&rays, rng.random::<u32>() & (u32::MAX >> (32 - N)));
+            assert_eq!(
+                b.sign_groups(lanes),
+                crate::packet::width::sign_groups(&rays, lanes),
+                "{N} lanes {lanes:#x}"
+            );
+        }
+        let mut rng = SmallRng::seed_from_u64(19);
         for _ in 0..3000 {
             check::<16>(&mut rng);
             check::<8>(&mut rng);

@@ -22,6 +22,7 @@ use wide::f32x4;
 use crate::geom::box_quad::BoxQuad;
 use crate::geom::ray::Ray;
 use crate::geom::tri_block::TriBlock;
+use crate::packet::boxes::PacketBoxes;
 use crate::packet::width::by_axis;
 use crate::packet::width::lanes_of;
 
@@ -104,11 +105,33 @@ impl Frustum {
         if off() || lanes == 0 {
             return None;
         }
-        let o = rays[lanes.trailing_zeros() as usize].origin;
-        if lanes_of(lanes).any(|l| rays[l].origin.to_array().map(f32::to_bits) != o.to_array().map(f32::to_bits)) {
+        Self::new_in(&Rows::of(rays).laid(), lanes)
+    }
+
+    /// [`Frustum::new`] of the rays `laid` was made from: the same frustum.
+    #[must_use]
+    pub fn new_laid<const N: usize>(laid: &PacketBoxes<N>, lanes: u32) -> Option<Self> {
+        if off() || lanes == 0 {
             return None;
         }
-        Self::from_apex(o, rays, lanes, false, true, 0.0, 0.0)
+        Self::new_in(&Laid::from(laid), lanes)
+    }
+
+    fn new_in<const N: usize>(rays: &Laid<'_, N>, lanes: u32) -> Option<Self> {
+        let f = lanes.trailing_zeros() as usize;
+        let o = [rays.o[0][f], rays.o[1][f], rays.o[2][f]].map(f32::to_bits);
+        if lanes_of(lanes).any(|l| [rays.o[0][l], rays.o[1][l], rays.o[2][l]].map(f32::to_bits) != o) {
+            return None;
+        }
+        Self::from_apex(
+            glam::Vec3::from_array(o.map(f32::from_bits)),
+            rays.d,
+            lanes,
+            false,
+            true,
+            0.0,
+            0.0,
+        )
     }
 
     /// [`Frustum::toward`] with the target the lanes end at: the first
@@ -136,9 +159,22 @@ impl Frustum {
         if off() || lanes == 0 || !target.is_finite() {
             return None;
         }
+        Self::toward_in(&Rows::of(rays).laid(), lanes, target)
+    }
+
+    /// [`Frustum::toward`] of the rays `laid` was made from: the same frustum.
+    #[must_use]
+    pub fn toward_laid<const N: usize>(laid: &PacketBoxes<N>, lanes: u32, target: glam::Vec3) -> Option<Self> {
+        if off() || lanes == 0 || !target.is_finite() {
+            return None;
+        }
+        Self::toward_in(&Laid::from(laid), lanes, target)
+    }
+
+    fn toward_in<const N: usize>(rays: &Laid<'_, N>, lanes: u32, target: glam::Vec3) -> Option<Self> {
         // PERF: four lanes at a time on the rays laid out by axis (a lane
         // loop was 5% of a shadow-query profile).
-        let (o, d) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.dir));
+        let (o, d) = (rays.o, rays.d);
         let quad = |v: &[f32; N], c: usize| f32x4::new([v[c], v[c + 1], v[c + 2], v[c + 3]]);
         let on = |c: usize| lane_mask(lanes >> c);
         let max3 = |v: [f32x4; 3]| v[0].abs().fast_max(v[1].abs()).fast_max(v[2].abs());
@@ -165,7 +201,7 @@ impl Frustum {
             ];
             let tolerance = ppm * f32x4::splat(scale).fast_max(max3(e)).fast_max(tiny);
             let off_target = max3([e[0] - tx, e[1] - ty, e[2] - tz]);
-            let t_max = f32x4::new(std::array::from_fn(|i| rays[c + i].t_max));
+            let t_max = quad(rays.t_max, c);
             // NOTE: a NaN or infinite end fails the lane (`fast_max` may
             // drop a NaN); a NaN `t_max` fails the compare.
             let finite = e[0].is_finite() & e[1].is_finite() & e[2].is_finite();
@@ -174,7 +210,7 @@ impl Frustum {
                 return None;
             }
         }
-        Self::from_apex(target, rays, lanes, true, false, scale, 0.0)
+        Self::from_apex(target, rays.d, lanes, true, false, scale, 0.0)
     }
 
     /// The frustum of a packet's closest-hit query: lanes sharing an origin
@@ -184,12 +220,27 @@ impl Frustum {
         Self::new(rays, lanes).or_else(|| Self::through(rays, lanes))
     }
 
+    /// [`Frustum::for_intersect`] of the rays `laid` was made from: the same frustum.
+    #[must_use]
+    pub fn for_intersect_laid<const N: usize>(rays: &[Ray; N], laid: &PacketBoxes<N>, lanes: u32) -> Option<Self> {
+        Self::new_laid(laid, lanes).or_else(|| Self::through_in(rays, &Laid::from(laid), lanes))
+    }
+
     /// The frustum of a packet's any-hit query: lanes sharing an origin
     /// ([`Frustum::new`]) or an end point ([`Frustum::ending`]: shadow rays
     /// towards one light).
     #[must_use]
     pub fn for_occluded<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
         Self::new(rays, lanes).or_else(|| Self::ending(rays, lanes))
+    }
+
+    /// [`Frustum::for_occluded`] of the rays `laid` was made from: the same frustum.
+    #[must_use]
+    pub fn for_occluded_laid<const N: usize>(rays: &[Ray; N], laid: &PacketBoxes<N>, lanes: u32) -> Option<Self> {
+        Self::new_laid(laid, lanes).or_else(|| {
+            let r = &rays[lanes.trailing_zeros() as usize];
+            Self::toward_laid(laid, lanes, r.origin + r.dir)
+        })
     }
 
     /// The frustum of the `lanes` of `rays` whose lines all pass near one
@@ -212,6 +263,10 @@ impl Frustum {
     /// on top of the usual margins.
     #[must_use]
     pub fn through<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
+        Self::through_in(rays, &Rows::of(rays).laid(), lanes)
+    }
+
+    fn through_in<const N: usize>(rays: &[Ray; N], laid: &Laid<'_, N>, lanes: u32) -> Option<Self> {
         if off() || lanes.count_ones() < 2 {
             return None;
         }
@@ -220,7 +275,7 @@ impl Frustum {
         if !apex.is_finite() {
             return None;
         }
-        let (o, d) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.dir));
+        let (o, d) = (laid.o, laid.d);
         let quad = |v: &[f32; N], c: usize| f32x4::new([v[c], v[c + 1], v[c + 2], v[c + 3]]);
         let max3 = |v: [f32x4; 3]| v[0].abs().fast_max(v[1].abs()).fast_max(v[2].abs());
         const { assert!(N.is_multiple_of(4), "packets are whole registers of four lanes") };
@@ -239,7 +294,7 @@ impl Frustum {
             let len = (dx * dx + dy * dy + dz * dz).sqrt();
             let off_line = (cx * cx + cy * cy + cz * cz).sqrt() / len;
             let ahead = (vx * dx + vy * dy + vz * dz) / len;
-            let t_min = f32x4::new(std::array::from_fn(|k| rays[c + k].t_min));
+            let t_min = quad(laid.t_min, c);
             // NOTE: NaN fails every compare; `fine` is false for it.
             let fine = off_line.is_finite() & ahead.is_finite() & max3(origin).is_finite() & t_min.simd_ge(f32x4::ZERO);
             bad |= (on & !fine).to_bitmask() != 0;
@@ -259,7 +314,7 @@ impl Frustum {
         if !fits {
             return None;
         }
-        Self::from_apex(apex, rays, lanes, false, false, scale, radius)
+        Self::from_apex(apex, laid.d, lanes, false, false, scale, radius)
     }
 
     /// How far the lanes' lines may pass from the apex: 0 except for a
@@ -283,7 +338,7 @@ impl Frustum {
     // per lane): 3.5% of a kitchen primary-query profile as a lane iterator.
     fn from_apex<const N: usize>(
         o: glam::Vec3,
-        rays: &[Ray; N],
+        dirs: &[[f32; N]; 3],
         lanes: u32,
         negate: bool,
         shared_origin: bool,
@@ -294,7 +349,8 @@ impl Frustum {
             return None;
         }
         let sg = if negate { -1.0 } else { 1.0 };
-        let first = rays[lanes.trailing_zeros() as usize].dir * sg;
+        let f = lanes.trailing_zeros() as usize;
+        let first = glam::Vec3::new(dirs[0][f], dirs[1][f], dirs[2][f]) * sg;
         let k = first.abs().max_position();
         let (a, b) = ((k + 1) % 3, (k + 2) % 3);
         let s = first[k].signum();
@@ -313,7 +369,7 @@ impl Frustum {
                 continue;
             }
             let on = lane_mask(on_bits);
-            let axis = |x: usize| f32x4::new(std::array::from_fn(|i| rays[c + i].dir[x])) * sgv;
+            let axis = |x: usize| f32x4::new(std::array::from_fn(|i| dirs[x][c + i])) * sgv;
             let (dk, da, db) = (axis(k), axis(a), axis(b));
             // NOTE: a zero or NaN component along `k` fails the test.
             let ok = (dk * sv).simd_gt(zero) & dk.is_finite() & da.is_finite() & db.is_finite();
@@ -548,6 +604,53 @@ impl Frustum {
     }
 }
 
+/// A packet's rays laid out axis by axis, as the frusta read them: gathered
+/// from the rays ([`Rows`]) or borrowed from a [`PacketBoxes`] made from
+/// them (the same values).
+struct Laid<'a, const N: usize> {
+    o: &'a [[f32; N]; 3],
+    d: &'a [[f32; N]; 3],
+    t_min: &'a [f32; N],
+    t_max: &'a [f32; N],
+}
+
+impl<'a, const N: usize> From<&'a PacketBoxes<N>> for Laid<'a, N> {
+    fn from(b: &'a PacketBoxes<N>) -> Self {
+        let (o, d, t_min, t_max) = b.rows();
+        Self { o, d, t_min, t_max }
+    }
+}
+
+/// A packet's rays gathered into rows, axis by axis ([`Laid`] borrows them).
+struct Rows<const N: usize> {
+    o: [[f32; N]; 3],
+    d: [[f32; N]; 3],
+    t_min: [f32; N],
+    t_max: [f32; N],
+}
+
+impl<const N: usize> Rows<N> {
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn of(rays: &[Ray; N]) -> Self {
+        Self {
+            o: by_axis(rays, |r| r.origin),
+            d: by_axis(rays, |r| r.dir),
+            t_min: std::array::from_fn(|l| rays[l].t_min),
+            t_max: std::array::from_fn(|l| rays[l].t_max),
+        }
+    }
+
+    fn laid(&self) -> Laid<'_, N> {
+        Laid {
+            o: &self.o,
+            d: &self.d,
+            t_min: &self.t_min,
+            t_max: &self.t_max,
+        }
+    }
+}
+
 /// The largest radius of a [`Frustum::through`], relative to the largest
 /// coordinate of its apex and its lanes' origins: packets whose lines pass
 /// farther from one point get no frustum.
@@ -700,8 +803,9 @@ mod tests {
             let lanes = rng.random::<u32>() & (u32::MAX >> (32 - N)) | 1 << rng.random_range(0..N);
             // The rectangle's own refusals (lanes pointing both ways along
             // its axis) are the other test's.
-            let want = lane_loop(&rays, lanes, target)
-                .filter(|&s| Frustum::from_apex(target, &rays, lanes, true, false, s, 0.0).is_some());
+            let want = lane_loop(&rays, lanes, target).filter(|&s| {
+                Frustum::from_apex(target, &by_axis(&rays, |r| r.dir), lanes, true, false, s, 0.0).is_some()
+            });
             let got = Frustum::toward(&rays, lanes, target).map(|f| f.slack.to_array()[0].to_bits());
             assert_eq!(
                 got,
@@ -718,6 +822,92 @@ mod tests {
     }
 
     /// 4x4 pixel blocks of a camera, as the renderer's primary packets.
+    /// Every field of a frustum, as bits.
+    fn frustum_bits(f: &Frustum) -> Vec<u32> {
+        let mut v: Vec<u32> = f.origin.to_array().map(f32::to_bits).to_vec();
+        v.extend(f.rect.map(f32::to_bits));
+        v.push(u32::from(f.shared_origin));
+        v.extend(f.axes.map(|a| a as u32));
+        for x in f.o.iter().chain([
+            &f.sign,
+            &f.lo_u,
+            &f.hi_u,
+            &f.lo_v,
+            &f.hi_v,
+            &f.slack,
+            &f.box_scale,
+            &f.edge_margin,
+        ]) {
+            v.extend(x.to_array().map(f32::to_bits));
+        }
+        v.push(f.radius.to_bits());
+        v
+    }
+
+    /// Frusta made from a packet's lanes laid out ([`PacketBoxes`]) are the
+    /// frusta made from its rays, field for field, bit for bit: camera,
+    /// shadow and mirrored packets, with lanes pointing back, along an axis,
+    /// with NaN or past the target, and partial masks.
+    #[test]
+    fn frusta_from_laid_out_lanes_are_the_rays_frusta() {
+        let mut rng = SmallRng::seed_from_u64(77);
+        let eye = Vec3::new(0.5, -0.25, 2.0);
+        let light = Vec3::new(-3.0, 6.0, 1.0);
+        let camera = blocks(eye, Vec3::new(0.0, 0.0, -10.0));
+        let mirror = mirrored(&camera, -4.0);
+        let sphere = curved(&camera, Vec3::new(0.0, 0.0, -6.0), 3.0);
+        assert!(!mirror.is_empty() && !sphere.is_empty());
+        let (mut made, mut none) = (0, 0);
+        let all = camera.iter().chain(&mirror).chain(&sphere).collect::<Vec<_>>();
+        for (k, p) in all.into_iter().enumerate() {
+            for round in 0..6 {
+                let mut rays = if k % 2 == 1 {
+                    shadow_packet(p, light, &mut rng)
+                } else {
+                    *p
+                };
+                let l = rng.random_range(0..16);
+                match round {
+                    1 => rays[l] = Ray::infinite(rays[l].origin, -rays[l].dir),
+                    2 => rays[l] = Ray::infinite(rays[l].origin, Vec3::new(0.0, -0.0, -1.0)),
+                    3 => rays[l] = Ray::infinite(rays[l].origin, Vec3::new(f32::NAN, 0.1, -1.0)),
+                    4 => rays[l] = Ray::new(rays[l].origin, rays[l].dir * 1.5, 0.0, 1.0),
+                    _ => {}
+                }
+                let lanes = if round == 5 {
+                    rng.random::<u32>() & 0xffff | 1
+                } else {
+                    0xffff
+                };
+                let laid = PacketBoxes::new(&rays, lanes);
+                let pairs = [
+                    (Frustum::new(&rays, lanes), Frustum::new_laid(&laid, lanes)),
+                    (
+                        Frustum::toward(&rays, lanes, light),
+                        Frustum::toward_laid(&laid, lanes, light),
+                    ),
+                    (
+                        Frustum::for_intersect(&rays, lanes),
+                        Frustum::for_intersect_laid(&rays, &laid, lanes),
+                    ),
+                    (
+                        Frustum::for_occluded(&rays, lanes),
+                        Frustum::for_occluded_laid(&rays, &laid, lanes),
+                    ),
+                ];
+                for (i, (want, got)) in pairs.iter().enumerate() {
+                    assert_eq!(
+                        got.as_ref().map(frustum_bits),
+                        want.as_ref().map(frustum_bits),
+                        "packet {k}, round {round}, kind {i}"
+                    );
+                    if want.is_some() { made += 1 } else { none += 1 }
+                }
+            }
+        }
+        assert!(made > 500 && none > 500, "frusta made {made}, refused {none}");
+    }
+
     fn blocks(eye: Vec3, at: Vec3) -> Vec<[Ray; 16]> {
         let (w, h) = (32, 24);
         let rays = meshgen::camera_rays(eye, at, w, h, 50.0);

@@ -20,6 +20,7 @@
 use crate::geom::ray::Ray;
 use crate::kd::node::{KdNode, MAX_DEPTH};
 use crate::kd::traverse::{traverse, widen_down, widen_up};
+use crate::packet::boxes::PacketBoxes;
 use crate::packet::width::MAX_LANES;
 use crate::packet::width::{by_axis, lanes_of, sign_groups};
 
@@ -66,6 +67,26 @@ pub fn traverse_packet<const N: usize, L>(
     t0: &[f32; N],
     t1: &[f32; N],
     closest: &mut [f32; N],
+    leaf: L,
+) -> u32
+where
+    L: FnMut(KdNode, u32, &mut [f32; N]) -> u32,
+{
+    traverse_packet_laid(nodes, rays, None, lanes, t0, t1, closest, leaf)
+}
+
+/// [`traverse_packet`] with the rays' origins, reciprocal directions and
+/// direction signs read from `laid` (the same rays laid out lane by lane)
+/// when given, instead of gathered from the rays again. The same walk.
+#[allow(clippy::too_many_arguments)]
+pub fn traverse_packet_laid<const N: usize, L>(
+    nodes: &[KdNode],
+    rays: &[Ray; N],
+    laid: Option<&PacketBoxes<N>>,
+    lanes: u32,
+    t0: &[f32; N],
+    t1: &[f32; N],
+    closest: &mut [f32; N],
     mut leaf: L,
 ) -> u32
 where
@@ -77,14 +98,30 @@ where
     }
     // The scalar walk's own early exit, per lane.
     let lanes = lanes & bits::<N>(|l| !(t0[l].is_nan() || t1[l].is_nan() || t0[l] > t1[l]));
-    let (groups, alone) = sign_groups(rays, lanes);
+    let (groups, alone) = match laid {
+        Some(b) => b.sign_groups(lanes),
+        None => sign_groups(rays, lanes),
+    };
     let mut done = 0;
+    // Origins and safe reciprocal directions, axis by axis, gathered when a
+    // group first needs them (lanes outside a group compute with whatever
+    // they hold and are never looked at).
+    let mut gathered = None;
     for (signs, &group) in groups.iter().enumerate() {
         match group.count_ones() {
             0 => {}
             // PERF: a lone lane takes the scalar walk (no lane loops).
             1 => done |= alone_walk(nodes, rays, group, t0, t1, closest, &mut leaf),
-            _ => done |= walk_for_cpu(nodes, rays, group, signs as u32, t0, t1, closest, &mut leaf),
+            _ => {
+                let (org, inv) = if let Some(b) = laid {
+                    (&b.o, &b.inv)
+                } else {
+                    let (org, inv) =
+                        gathered.get_or_insert_with(|| (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.inv_dir)));
+                    (&*org, &*inv)
+                };
+                done |= walk_for_cpu(nodes, org, inv, group, signs as u32, t0, t1, closest, &mut leaf);
+            }
         }
     }
     for l in lanes_of(alone) {
@@ -128,7 +165,8 @@ where
 #[inline]
 fn walk_for_cpu<const N: usize, L>(
     nodes: &[KdNode],
-    rays: &[Ray; N],
+    org: &[[f32; N]; 3],
+    inv: &[[f32; N]; 3],
     lanes: u32,
     signs: u32,
     t0: &[f32; N],
@@ -142,9 +180,9 @@ where
     #[cfg(target_arch = "x86_64")]
     if N >= 8 && crate::packet::width::avx2() {
         // SAFETY: the CPU has AVX2.
-        return unsafe { walk_avx2(nodes, rays, lanes, signs, t0, t1, closest, leaf) };
+        return unsafe { walk_avx2(nodes, org, inv, lanes, signs, t0, t1, closest, leaf) };
     }
-    walk(nodes, rays, lanes, signs, t0, t1, closest, leaf)
+    walk(nodes, org, inv, lanes, signs, t0, t1, closest, leaf)
 }
 
 /// [`walk`] compiled for AVX2.
@@ -156,7 +194,8 @@ where
 #[allow(clippy::too_many_arguments)]
 unsafe fn walk_avx2<const N: usize, L>(
     nodes: &[KdNode],
-    rays: &[Ray; N],
+    org: &[[f32; N]; 3],
+    inv: &[[f32; N]; 3],
     lanes: u32,
     signs: u32,
     t0: &[f32; N],
@@ -167,7 +206,7 @@ unsafe fn walk_avx2<const N: usize, L>(
 where
     L: FnMut(KdNode, u32, &mut [f32; N]) -> u32,
 {
-    walk(nodes, rays, lanes, signs, t0, t1, closest, leaf)
+    walk(nodes, org, inv, lanes, signs, t0, t1, closest, leaf)
 }
 
 /// The packet walk of `lanes`, which share the direction signs `signs`
@@ -176,7 +215,8 @@ where
 #[inline(always)]
 fn walk<const N: usize, L>(
     nodes: &[KdNode],
-    rays: &[Ray; N],
+    org: &[[f32; N]; 3],
+    inv: &[[f32; N]; 3],
     lanes: u32,
     signs: u32,
     t0: &[f32; N],
@@ -187,9 +227,6 @@ fn walk<const N: usize, L>(
 where
     L: FnMut(KdNode, u32, &mut [f32; N]) -> u32,
 {
-    // Origins and safe reciprocal directions, axis by axis (lanes outside
-    // `lanes` compute with whatever they hold and are never looked at).
-    let (org, inv) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.inv_dir));
     let mut t_min: [f32; N] = std::array::from_fn(|l| widen_down(t0[l]));
     let mut t_max: [f32; N] = std::array::from_fn(|l| widen_up(t1[l]));
     // PERF: the stack is not zeroed: entries are written before they are read.
@@ -306,6 +343,7 @@ mod tests {
         let t0 = [0.0f32; N];
         let t1: [f32; N] = std::array::from_fn(|l| if l % 3 == 1 { 3.0 } else { rays[l].t_max });
         let mut closest: [f32; N] = std::array::from_fn(|l| rays[l].t_max);
+        let (org, inv) = (by_axis(rays, |r| r.origin), by_axis(rays, |r| r.inv_dir));
         let mut seen = Vec::new();
         let mut leaf = |n: KdNode, active: u32, closest: &mut [f32; N]| {
             seen.push((
@@ -327,10 +365,32 @@ mod tests {
         #[cfg(target_arch = "x86_64")]
         if avx2 {
             // SAFETY: the caller checked that the CPU has AVX2.
-            let done = unsafe { walk_avx2(tree.nodes(), rays, lanes, signs, &t0, &t1, &mut closest, &mut leaf) };
+            let done = unsafe {
+                walk_avx2(
+                    tree.nodes(),
+                    &org,
+                    &inv,
+                    lanes,
+                    signs,
+                    &t0,
+                    &t1,
+                    &mut closest,
+                    &mut leaf,
+                )
+            };
             return (seen, done);
         }
-        let done = walk(tree.nodes(), rays, lanes, signs, &t0, &t1, &mut closest, &mut leaf);
+        let done = walk(
+            tree.nodes(),
+            &org,
+            &inv,
+            lanes,
+            signs,
+            &t0,
+            &t1,
+            &mut closest,
+            &mut leaf,
+        );
         (seen, done)
     }
 
@@ -352,6 +412,54 @@ mod tests {
             }
         }
         leaves
+    }
+
+    /// A walk reading the lanes laid out ([`traverse_packet_laid`]) meets
+    /// the leaves of the walk gathering them from the rays, with the same
+    /// lanes and closest distances, bit for bit (every sign group, lone
+    /// lanes and lanes with a zero direction component included).
+    #[test]
+    fn the_laid_out_walk_is_the_rays_walk() {
+        let tris = meshgen::bumpy_sphere(4_000, 7, 0.4);
+        let tree = KdTree::build_sah(tris).unwrap();
+        let mut rays = meshgen::camera_rays(Vec3::new(0.4, 0.3, 3.0), Vec3::ZERO, 32, 32, 60.0);
+        rays.extend(meshgen::random_rays(
+            1024,
+            9,
+            Aabb::new(Vec3::splat(-1.5), Vec3::splat(1.5)),
+        ));
+        for (k, r) in rays.iter_mut().enumerate().filter(|(k, _)| k % 37 == 0) {
+            *r = Ray::infinite(
+                r.origin,
+                Vec3::new(r.dir.x, if k % 2 == 0 { 0.0 } else { -0.0 }, r.dir.z),
+            );
+        }
+        let mut leaves = 0;
+        for (k, chunk) in rays.chunks_exact(16).enumerate() {
+            let pk: [Ray; 16] = std::array::from_fn(|l| chunk[l]);
+            let lanes = if k % 3 == 0 { 0xffff } else { 0x5a5a | k as u32 & 0xffff };
+            let laid = PacketBoxes::new(&pk, lanes);
+            let walk = |laid: Option<&PacketBoxes<16>>| {
+                let (t0, t1, live) = laid.map_or_else(
+                    || tree.bounds().clip_lanes(&pk, lanes, &[f32::INFINITY; 16]),
+                    |b| b.clip(&tree.bounds(), lanes, &[f32::INFINITY; 16]),
+                );
+                let mut closest = [f32::INFINITY; 16];
+                let mut seen = Vec::new();
+                let done =
+                    traverse_packet_laid(tree.nodes(), &pk, laid, live, &t0, &t1, &mut closest, |n, active, c| {
+                        seen.push((n.prim_offset(), active, c.map(f32::to_bits)));
+                        let l = active.trailing_zeros() as usize;
+                        c[l] = c[l].min(1.0 + 0.25 * (n.prim_offset() % 16) as f32);
+                        active & u32::from(seen.len() % 5 == 0)
+                    });
+                (seen, done)
+            };
+            let want = walk(None);
+            assert_eq!(walk(Some(&laid)), want, "packet {k}");
+            leaves += want.0.len();
+        }
+        assert!(leaves > 500, "the walks meet leaves: {leaves}");
     }
 
     #[test]

@@ -144,6 +144,14 @@ pub fn sign_groups<const N: usize>(rays: &[Ray; N], mask: u32) -> ([u32; 8], u32
         }
         zero |= u32::from(d[0] == 0.0 || d[1] == 0.0 || d[2] == 0.0) << l;
     }
+    groups_of(mask, neg, zero)
+}
+
+/// The groups of [`sign_groups`] from the masks of the lanes with a
+/// negative component along each axis and of those with a zero component.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+pub(crate) fn groups_of(mask: u32, neg: [u32; 3], zero: u32) -> ([u32; 8], u32) {
     let live = mask & !zero;
     let side = |a: usize, s: usize| if s & (1 << a) != 0 { neg[a] } else { !neg[a] };
     let groups = std::array::from_fn(|s| live & side(0, s) & side(1, s) & side(2, s));

@@ -27,6 +27,7 @@ use crate::geom::ray::Ray;
 use crate::geom::tri_block::TriBlock;
 use crate::geom::triangle::Triangle;
 use crate::geom::triangle::intersect_triangle;
+use crate::packet::boxes::PacketBoxes;
 use crate::packet::width::MAX_LANES;
 
 #[cfg(target_arch = "x86_64")]
@@ -165,6 +166,35 @@ impl<const N: usize> PacketBlockRay<N> {
             sy: chunks(&|r| r.shear.y),
             sz: chunks(&|r| r.shear.z),
             t_min: chunks(&|r| r.t_min),
+            kx,
+            ky,
+            kz,
+        })
+    }
+
+    /// [`PacketBlockRay::new`] with the origins and near bounds read from
+    /// `laid` (the same rays laid out lane by lane): the same constants.
+    pub(crate) fn from_laid(rays: &[Ray; N], laid: &PacketBoxes<N>, lanes: u32) -> Option<Self> {
+        const { assert!(N.is_multiple_of(CHUNK) && N <= MAX_LANES) };
+        let first = &rays[lanes.trailing_zeros() as usize];
+        let (kx, ky, kz) = (first.kx, first.ky, first.kz);
+        if crate::packet::width::lanes_of(lanes).any(|l| (rays[l].kx, rays[l].ky, rays[l].kz) != (kx, ky, kz)) {
+            return None;
+        }
+        let chunks = |f: &dyn Fn(&Ray) -> f32| -> [f32x4; MAX_CHUNKS] {
+            std::array::from_fn(|k| f32x4::new(std::array::from_fn(|i| rays.get(k * CHUNK + i).map_or(0.0, f))))
+        };
+        let rows = |v: &[f32; N]| -> [f32x4; MAX_CHUNKS] {
+            std::array::from_fn(|k| f32x4::new(std::array::from_fn(|i| v.get(k * CHUNK + i).copied().unwrap_or(0.0))))
+        };
+        Some(Self {
+            ox: rows(&laid.o[kx]),
+            oy: rows(&laid.o[ky]),
+            oz: rows(&laid.o[kz]),
+            sx: chunks(&|r| r.shear.x),
+            sy: chunks(&|r| r.shear.y),
+            sz: chunks(&|r| r.shear.z),
+            t_min: rows(&laid.t_min),
             kx,
             ky,
             kz,
@@ -352,6 +382,15 @@ mod tests {
         x.map(|(a, b, c)| (a.to_bits(), b.to_bits(), c.to_bits()))
     }
 
+    /// Every constant of a packet's rays, as bits.
+    fn constants(p: &PacketBlockRay<N>) -> Vec<u32> {
+        let mut v = vec![p.kx as u32, p.ky as u32, p.kz as u32];
+        for rows in [&p.ox, &p.oy, &p.oz, &p.sx, &p.sy, &p.sz, &p.t_min] {
+            v.extend(rows.iter().flat_map(|x| x.to_array().map(f32::to_bits)));
+        }
+        v
+    }
+
     /// The AVX2 kernel's answer, `None` on a CPU without AVX2.
     #[allow(clippy::unnecessary_wraps)]
     fn intersect_block8(
@@ -375,6 +414,9 @@ mod tests {
     fn check(rays: &[Ray; N], tri: &Triangle, t_max: &[f32; N]) -> (u32, u32) {
         let p = PacketBlockRay::new(rays, u32::MAX >> (32 - N)).expect("one permutation");
         let all = u32::MAX >> (32 - N);
+        // The constants from the lanes laid out are the rays', bit for bit.
+        let laid = PacketBlockRay::from_laid(rays, &PacketBoxes::new(rays, all), all).expect("one permutation");
+        assert_eq!(constants(&laid), constants(&p));
         let h = p.intersect(tri, all, t_max);
         assert_eq!(h.hit & h.edge, 0);
         // Read from any lane of a leaf block, the triangle gives the same
@@ -513,5 +555,8 @@ mod tests {
         });
         assert!(PacketBlockRay::new(&rays, u32::MAX >> (32 - N)).is_none());
         assert!(PacketBlockRay::new(&rays, 0b0111).is_some());
+        let laid = PacketBoxes::new(&rays, u32::MAX >> (32 - N));
+        assert!(PacketBlockRay::from_laid(&rays, &laid, u32::MAX >> (32 - N)).is_none());
+        assert!(PacketBlockRay::from_laid(&rays, &laid, 0b0111).is_some());
     }
 }
