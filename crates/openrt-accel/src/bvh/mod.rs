@@ -469,10 +469,7 @@ impl Bvh {
         let frustum = prep.frustum();
         let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);
-        let pbr = match laid_out {
-            Some(b) => PacketBlockRay::from_laid(rays, b, live),
-            None => PacketBlockRay::new(rays, live),
-        };
+        let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let mut brs: Option<[BlockRay; N]> = None;
         let mut ties = [NO_TIE; N];
         packet::walk_packet(&self.nodes, &lr, live, closest, &cull, |off, count, active, closest| {
@@ -563,10 +560,7 @@ impl Bvh {
         let frustum = prep.frustum();
         let cull = prep.cull(live);
         let lr = packet::LaneRays::new(rays);
-        let pbr = match laid_out {
-            Some(b) => PacketBlockRay::from_laid(rays, b, live),
-            None => PacketBlockRay::new(rays, live),
-        };
+        let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let mut brs: Option<[BlockRay; N]> = None;
         blocked |= packet::walk_packet(
             &self.nodes,

@@ -405,10 +405,7 @@ impl KdTree {
         // packet) pre-test each triangle against all lanes at once, unless
         // few lanes reach the leaf: then each lane pre-tests four
         // triangles at a time on its own (`dense`).
-        let pbr = match laid_out {
-            Some(b) => PacketBlockRay::from_laid(rays, b, live),
-            None => PacketBlockRay::new(rays, live),
-        };
+        let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;
@@ -502,10 +499,7 @@ impl KdTree {
         if live == 0 {
             return (0, None);
         }
-        let pbr = match laid_out {
-            Some(b) => PacketBlockRay::from_laid(rays, b, live),
-            None => PacketBlockRay::new(rays, live),
-        };
+        let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let own = std::cell::OnceCell::new();
         // PERF: made on the first sparse leaf only (dense leaves need none).
         let mut brs: Option<[BlockRay; N]> = None;

@@ -164,23 +164,7 @@ impl<const N: usize> PacketBoxes<N> {
     #[inline(always)]
     #[must_use]
     pub(crate) fn sign_groups(&self, mask: u32) -> ([u32; 8], u32) {
-        let (mut neg, mut zero) = ([0u32; 3], 0u32);
-        for c in (0..N - N % 4).step_by(4) {
-            for (a, neg) in neg.iter_mut().enumerate() {
-                let d = &self.dir[a];
-                let v = f32x4::new([d[c], d[c + 1], d[c + 2], d[c + 3]]);
-                *neg |= v.to_bitmask() << c;
-                zero |= v.simd_eq(f32x4::ZERO).to_bitmask() << c;
-            }
-        }
-        for l in N - N % 4..N {
-            let d = [self.dir[0][l], self.dir[1][l], self.dir[2][l]];
-            for a in 0..3 {
-                neg[a] |= u32::from(d[a].is_sign_negative()) << l;
-            }
-            zero |= u32::from(d[0] == 0.0 || d[1] == 0.0 || d[2] == 0.0) << l;
-        }
-        crate::packet::width::groups_of(mask, neg, zero)
+        crate::packet::width::sign_groups_of::<N>(|a, l| self.dir[a][l], mask)
     }
 }
 

@@ -123,22 +123,28 @@ pub fn lanes_of(mut mask: u32) -> impl Iterator<Item = usize> {
 #[inline(always)]
 #[must_use]
 pub fn sign_groups<const N: usize>(rays: &[Ray; N], mask: u32) -> ([u32; 8], u32) {
+    sign_groups_of::<N>(|a, l| rays[l].dir[a], mask)
+}
+
+/// [`sign_groups`] of the directions `dir(axis, lane)`.
+// PERF: forced inline, as `sign_groups`.
+#[allow(clippy::inline_always)]
+#[inline(always)]
+pub(crate) fn sign_groups_of<const N: usize>(dir: impl Fn(usize, usize) -> f32, mask: u32) -> ([u32; 8], u32) {
     // PERF: a mask per sign and one of zero components, four lanes of one
     // axis to a register (the sign bits straight from `movmskps`, the zeros
     // from one compare), then the groups from the masks. As a lane loop
     // (a chain of shifts and ors per lane) it was 40% of a packet walk.
     let (mut neg, mut zero) = ([0u32; 3], 0u32);
-    let mut chunks = rays.chunks_exact(4);
-    for (k, c) in chunks.by_ref().enumerate() {
+    for c in (0..N - N % 4).step_by(4) {
         for (a, neg) in neg.iter_mut().enumerate() {
-            let v = f32x4::new([c[0].dir[a], c[1].dir[a], c[2].dir[a], c[3].dir[a]]);
-            *neg |= v.to_bitmask() << (4 * k);
-            zero |= v.simd_eq(f32x4::ZERO).to_bitmask() << (4 * k);
+            let v = f32x4::new([dir(a, c), dir(a, c + 1), dir(a, c + 2), dir(a, c + 3)]);
+            *neg |= v.to_bitmask() << c;
+            zero |= v.simd_eq(f32x4::ZERO).to_bitmask() << c;
         }
     }
-    let done = N - chunks.remainder().len();
-    for (l, r) in chunks.remainder().iter().enumerate().map(|(i, r)| (done + i, r)) {
-        let d = r.dir.to_array();
+    for l in N - N % 4..N {
+        let d = [dir(0, l), dir(1, l), dir(2, l)];
         for a in 0..3 {
             neg[a] |= u32::from(d[a].is_sign_negative()) << l;
         }
@@ -151,7 +157,7 @@ pub fn sign_groups<const N: usize>(rays: &[Ray; N], mask: u32) -> ([u32; 8], u32
 /// negative component along each axis and of those with a zero component.
 #[allow(clippy::inline_always)]
 #[inline(always)]
-pub(crate) fn groups_of(mask: u32, neg: [u32; 3], zero: u32) -> ([u32; 8], u32) {
+fn groups_of(mask: u32, neg: [u32; 3], zero: u32) -> ([u32; 8], u32) {
     let live = mask & !zero;
     let side = |a: usize, s: usize| if s & (1 << a) != 0 { neg[a] } else { !neg[a] };
     let groups = std::array::from_fn(|s| live & side(0, s) & side(1, s) & side(2, s));
