@@ -217,13 +217,24 @@ impl Frustum {
     /// ([`Frustum::new`]) or a virtual apex ([`Frustum::through`]).
     #[must_use]
     pub fn for_intersect<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
-        Self::new(rays, lanes).or_else(|| Self::through(rays, lanes))
+        if off() || lanes == 0 {
+            return None;
+        }
+        // The lanes gathered once for both kinds.
+        Self::for_intersect_in(rays, &Rows::of(rays).laid(), lanes)
     }
 
     /// [`Frustum::for_intersect`] of the rays `laid` was made from: the same frustum.
     #[must_use]
     pub fn for_intersect_laid<const N: usize>(rays: &[Ray; N], laid: &PacketBoxes<N>, lanes: u32) -> Option<Self> {
-        Self::new_laid(laid, lanes).or_else(|| Self::through_in(rays, &Laid::from(laid), lanes))
+        if off() || lanes == 0 {
+            return None;
+        }
+        Self::for_intersect_in(rays, &Laid::from(laid), lanes)
+    }
+
+    fn for_intersect_in<const N: usize>(rays: &[Ray; N], laid: &Laid<'_, N>, lanes: u32) -> Option<Self> {
+        Self::new_in(laid, lanes).or_else(|| Self::through_in(rays, laid, lanes))
     }
 
     /// The frustum of a packet's any-hit query: lanes sharing an origin
@@ -231,15 +242,31 @@ impl Frustum {
     /// towards one light).
     #[must_use]
     pub fn for_occluded<const N: usize>(rays: &[Ray; N], lanes: u32) -> Option<Self> {
-        Self::new(rays, lanes).or_else(|| Self::ending(rays, lanes))
+        if off() || lanes == 0 {
+            return None;
+        }
+        // The lanes gathered once for both kinds.
+        Self::for_occluded_in(rays, &Rows::of(rays).laid(), lanes)
     }
 
     /// [`Frustum::for_occluded`] of the rays `laid` was made from: the same frustum.
     #[must_use]
     pub fn for_occluded_laid<const N: usize>(rays: &[Ray; N], laid: &PacketBoxes<N>, lanes: u32) -> Option<Self> {
-        Self::new_laid(laid, lanes).or_else(|| {
+        if off() || lanes == 0 {
+            return None;
+        }
+        Self::for_occluded_in(rays, &Laid::from(laid), lanes)
+    }
+
+    fn for_occluded_in<const N: usize>(rays: &[Ray; N], laid: &Laid<'_, N>, lanes: u32) -> Option<Self> {
+        Self::new_in(laid, lanes).or_else(|| {
+            // `Frustum::ending`: the first lane's end is the target.
             let r = &rays[lanes.trailing_zeros() as usize];
-            Self::toward_laid(laid, lanes, r.origin + r.dir)
+            let target = r.origin + r.dir;
+            target
+                .is_finite()
+                .then(|| Self::toward_in(laid, lanes, target))
+                .flatten()
         })
     }
 
@@ -893,6 +920,15 @@ mod tests {
                     (
                         Frustum::for_occluded(&rays, lanes),
                         Frustum::for_occluded_laid(&rays, &laid, lanes),
+                    ),
+                    // The kinds in each query's order, made one by one.
+                    (
+                        Frustum::new(&rays, lanes).or_else(|| Frustum::through(&rays, lanes)),
+                        Frustum::for_intersect(&rays, lanes),
+                    ),
+                    (
+                        Frustum::new(&rays, lanes).or_else(|| Frustum::ending(&rays, lanes)),
+                        Frustum::for_occluded(&rays, lanes),
                     ),
                 ];
                 for (i, (want, got)) in pairs.iter().enumerate() {
