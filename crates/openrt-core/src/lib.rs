@@ -128,7 +128,7 @@ pub use render::{
     Backend, FrameStats, Image, RenderSettings, RenderedTile, Renderer, TILE, assemble, assemble_into, tile_count,
 };
 pub use scene::{GLOBAL_AREA_SHARE, MAX_GLOBAL_INSTANCES, Scene, SceneHit, Surface};
-pub use shade::{RayCounts, RenderMode};
+pub use shade::{MIN_RAY_WEIGHT, RayCounts, RenderMode};
 pub use texture::{Texture, TextureFilter, TextureWrap};
 pub use top_level::{TOP_LEVEL_BVH_MIN, TopLevel};
 

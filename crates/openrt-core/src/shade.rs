@@ -48,6 +48,16 @@ impl RayCounts {
         self.primary + self.shadow + self.reflection + self.refraction
     }
 
+    /// One bounce of kind `k` (0 refraction, 1 reflection) counted when it
+    /// was made and then left untraced ([`MIN_RAY_WEIGHT`]).
+    fn untrace(&mut self, k: usize) {
+        if k == 0 {
+            self.refraction -= 1;
+        } else {
+            self.reflection -= 1;
+        }
+    }
+
     /// Adds another count.
     pub fn add(&mut self, o: &Self) {
         self.primary += o.primary;
@@ -316,15 +326,23 @@ pub(crate) struct Prepared {
 impl<T: Tracer> Shader<'_, T> {
     /// Radiance along `ray` with its cone (`depth` = number of bounces so far).
     pub fn trace(&mut self, ray: &Ray, cone: Cone, depth: u32) -> Vec3 {
+        self.trace_weighted(ray, cone, depth, Vec3::ONE)
+    }
+
+    /// [`Shader::trace`] of a ray whose radiance reaches the pixel times
+    /// `weight` (the product of the weights of the bounces that led to it):
+    /// its own bounces are traced only where their weight stays at or
+    /// above [`MIN_RAY_WEIGHT`] ([`bounce_weight`]).
+    fn trace_weighted(&mut self, ray: &Ray, cone: Cone, depth: u32, weight: Vec3) -> Vec3 {
         if self.clock.on {
-            self.trace_as::<true>(ray, cone, depth)
+            self.trace_as::<true>(ray, cone, depth, weight)
         } else {
-            self.trace_as::<false>(ray, cone, depth)
+            self.trace_as::<false>(ray, cone, depth, weight)
         }
     }
 
-    /// [`Shader::trace`] with the phase clock on (`ON`) or compiled out.
-    fn trace_as<const ON: bool>(&mut self, ray: &Ray, cone: Cone, depth: u32) -> Vec3 {
+    /// [`Shader::trace_weighted`] with the phase clock on (`ON`) or compiled out.
+    fn trace_as<const ON: bool>(&mut self, ray: &Ray, cone: Cone, depth: u32, weight: Vec3) -> Vec3 {
         let t = PhaseClock::start::<ON>();
         let hit = self.tracer.intersect(ray);
         let t = self.clock.stop::<ON>(t, query_phase(depth));
@@ -360,6 +378,7 @@ impl<T: Tracer> Shader<'_, T> {
             &prep,
             |j| list.get(j).copied().unwrap_or(bits & (1 << (j & 63)) != 0),
             depth,
+            weight,
         )
     }
 
@@ -560,11 +579,23 @@ impl<T: Tracer> Shader<'_, T> {
     /// light `j`'s shadow ray (from [`Shader::shadow_ray`]) is occluded;
     /// traces the reflection and refraction rays below `max_depth`; the
     /// phase clock on (`ON`) or compiled out.
-    fn finish_as<const ON: bool>(&mut self, prep: &Prepared, blocked: impl Fn(usize) -> bool, depth: u32) -> Vec3 {
+    fn finish_as<const ON: bool>(
+        &mut self,
+        prep: &Prepared,
+        blocked: impl Fn(usize) -> bool,
+        depth: u32,
+        path: Vec3,
+    ) -> Vec3 {
         let mut bounces = [None; 2];
         let mut color = self.local_as::<ON>(prep, blocked, depth, &mut bounces);
-        for (weight, ray) in bounces.into_iter().flatten() {
-            color += weight * self.trace_as::<ON>(&ray, prep.cone, depth + 1);
+        for (k, bounce) in bounces.into_iter().enumerate() {
+            let Some((weight, ray)) = bounce else {
+                continue;
+            };
+            match bounce_weight(path, weight) {
+                Some(next) => color += weight * self.trace_as::<ON>(&ray, prep.cone, depth + 1, next),
+                None => self.counts.untrace(k),
+            }
         }
         color
     }
@@ -1355,9 +1386,22 @@ impl<T: Tracer> Shader<'_, T> {
             // their block's packets; then those that go alone.
             let mut pooled: [Vec<(usize, usize)>; 8] = Default::default();
             let mut alone: Vec<(usize, usize)> = Vec::new();
-            for (bi, b) in blocks.iter().enumerate() {
+            for (bi, b) in blocks.iter_mut().enumerate() {
                 // PERF: nothing to group when no lane bounces (every GL-like
                 // packet, most Whitted ones at their last depth).
+                if b.bouncing[k] == 0 {
+                    continue;
+                }
+                // Bounces too faint to matter are not traced (`MIN_RAY_WEIGHT`).
+                for l in lanes_of(b.bouncing[k]) {
+                    let path = if depth == 0 { Vec3::ONE } else { b.path[l] };
+                    if let Some(next) = bounce_weight(path, b.weights[k][l]) {
+                        b.next_path[k][l] = next;
+                    } else {
+                        b.bouncing[k] &= !(1 << l);
+                        self.counts.untrace(k);
+                    }
+                }
                 let mask = b.bouncing[k];
                 if mask == 0 {
                     continue;
@@ -1404,8 +1448,9 @@ impl<T: Tracer> Shader<'_, T> {
                 }
             }
             for (bi, l) in alone {
-                let (w, r) = (blocks[bi].weights[k][l], blocks[bi].rays[k][l]);
-                let c = self.trace(&r, blocks[bi].cones[l], depth + 1);
+                let b = &blocks[bi];
+                let (w, r, next) = (b.weights[k][l], b.rays[k][l], b.next_path[k][l]);
+                let c = self.trace_weighted(&r, b.cones[l], depth + 1, next);
                 blocks[bi].color[l] += w * c;
             }
             if next.is_empty() {
@@ -1423,10 +1468,14 @@ impl<T: Tracer> Shader<'_, T> {
                     NextPacket::Whole(bi) => {
                         let b = &blocks[bi];
                         self.shade_block(&b.rays[k], &b.cones, b.bouncing[k], depth + 1, nb);
+                        nb.path = b.next_path[k];
                     }
                     NextPacket::Gathered(gi) => {
                         let g = &gathered[gi];
                         self.shade_block(&g.rays, &g.cones, g.lanes, depth + 1, nb);
+                        for (i, &(bi, l)) in g.from.iter().enumerate() {
+                            nb.path[i] = blocks[bi].next_path[k][l];
+                        }
                     }
                 }
             }
@@ -1496,6 +1545,13 @@ pub(crate) struct ShadedBlock<const N: usize> {
     pub rays: [[Ray; N]; 2],
     pub weights: [[Vec3; N]; 2],
     pub bouncing: [u32; 2],
+    /// The weight of each lane's radiance in its pixel (the product of
+    /// the bounce weights that led to it) below the first depth, where it
+    /// is one; written by [`Shader::bounce_blocks`].
+    pub path: [Vec3; N],
+    /// The path weight of each lane's bounce of kind `k`, for the lanes of
+    /// `bouncing[k]` ([`Shader::bounce_blocks`]).
+    pub next_path: [[Vec3; N]; 2],
     pub cones: [Cone; N],
     pub lanes: u32,
 }
@@ -1508,6 +1564,8 @@ impl<const N: usize> ShadedBlock<N> {
             rays: [[Ray::infinite(Vec3::ZERO, Vec3::X); N]; 2],
             weights: [[Vec3::ZERO; N]; 2],
             bouncing: [0; 2],
+            path: [Vec3::ONE; N],
+            next_path: [[Vec3::ONE; N]; 2],
             cones: [Cone::default(); N],
             lanes: 0,
         }
@@ -1521,6 +1579,24 @@ impl<const N: usize> ShadedBlock<N> {
         self.weights[k][l] = w;
         self.bouncing[k] |= 1 << l;
     }
+}
+
+/// A bounce is traced only where the weight of its radiance in the pixel
+/// (the product of the bounce weights along its path, per channel) reaches
+/// this in some channel: below it, the bounce could add at most this share
+/// of its radiance to the pixel, under half a step of an 8-bit channel for
+/// radiance up to one. Ray-tree pruning (Hall & Greenberg 1983); POV-Ray's
+/// `adc_bailout` has the same default. Single rays and packets prune alike,
+/// so they keep giving the same bytes.
+pub const MIN_RAY_WEIGHT: f32 = 1.0 / 255.0;
+
+/// The path weight of a bounce of `weight` from a ray of path weight
+/// `path`, or `None` when it falls below [`MIN_RAY_WEIGHT`] in every
+/// channel (or is NaN) and the bounce is not traced.
+#[inline]
+fn bounce_weight(path: Vec3, weight: Vec3) -> Option<Vec3> {
+    let next = path * weight;
+    (next.max_element() >= MIN_RAY_WEIGHT).then_some(next)
 }
 
 /// The reflection and refraction rays a hit still traces, refraction first:
@@ -2004,6 +2080,27 @@ mod tests {
         );
         let v = crate::surface_lanes::vectors(&got);
         std::array::from_fn(|i| v[i])
+    }
+
+    #[test]
+    fn a_bounce_is_kept_while_one_channel_of_its_path_weight_reaches_the_limit() {
+        let w = MIN_RAY_WEIGHT;
+        assert_eq!(
+            bounce_weight(Vec3::ONE, Vec3::new(0.0, w, 0.0)),
+            Some(Vec3::new(0.0, w, 0.0))
+        );
+        assert_eq!(
+            bounce_weight(Vec3::splat(0.5), Vec3::new(2.0 * w, 0.0, 0.0)),
+            Some(Vec3::X * w)
+        );
+        assert_eq!(bounce_weight(Vec3::splat(0.5), Vec3::splat(w)), None);
+        assert_eq!(bounce_weight(Vec3::ONE, Vec3::ZERO), None);
+        assert_eq!(bounce_weight(Vec3::ONE, Vec3::NAN), None);
+        // One NaN channel does not hide a heavy one.
+        assert_eq!(
+            bounce_weight(Vec3::ONE, Vec3::new(f32::NAN, 0.5, 0.0)).map(|v| v.y),
+            Some(0.5)
+        );
     }
 
     #[test]

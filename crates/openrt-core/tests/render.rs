@@ -781,3 +781,97 @@ fn mixed_lanes(plain: bool, mode: RenderMode) {
         }
     }
 }
+
+/// Two facing mirrors of reflectance `specular` (and a faint diffuse part)
+/// between which every camera ray bounces, rendered to `max_depth` with
+/// `backend`: the image and the reflection rays traced.
+fn hall_of_mirrors(specular: f32, max_depth: u32, backend: openrt_core::Backend) -> (Image, u64) {
+    let mut ctx = Context::new();
+    let mirror = ctx
+        .create_material(Material {
+            diffuse: Vec3::splat(0.3),
+            specular: Vec3::splat(specular),
+            shininess: 40.0,
+            ..Material::default()
+        })
+        .unwrap();
+    let near = object(
+        &mut ctx,
+        &quad(
+            Vec3::new(-9.0, -9.0, 4.0),
+            Vec3::new(-9.0, 9.0, 4.0),
+            Vec3::new(9.0, 9.0, 4.0),
+            Vec3::new(9.0, -9.0, 4.0),
+        ),
+        mirror,
+    );
+    let far = object(
+        &mut ctx,
+        &quad(
+            Vec3::new(-9.0, -9.0, -4.0),
+            Vec3::new(9.0, -9.0, -4.0),
+            Vec3::new(9.0, 9.0, -4.0),
+            Vec3::new(-9.0, 9.0, -4.0),
+        ),
+        mirror,
+    );
+    let ball = object(&mut ctx, &meshgen::bumpy_sphere(400, 2, 0.0), mirror);
+    for id in [near, far, ball] {
+        ctx.instantiate(id).unwrap();
+    }
+    ctx.commit().unwrap();
+    let cam = Camera {
+        from: Vec3::new(0.3, 0.2, 3.0),
+        at: Vec3::new(0.0, 0.0, -4.0),
+        up: Vec3::Y,
+        fov_y_deg: 40.0,
+        near: 0.0,
+    };
+    let env = Environment {
+        lights: vec![PointLight {
+            position: Vec3::new(2.0, 3.0, 0.0),
+            color: Vec3::ONE,
+        }],
+        ambient: Vec3::splat(0.1),
+        background: Vec3::ZERO,
+    };
+    let mut r = Renderer::new(2).expect("a render pool");
+    r.set_backend(backend);
+    let s = RenderSettings {
+        width: 48,
+        height: 32,
+        mode: RenderMode::Whitted,
+        max_depth,
+        ..RenderSettings::default()
+    };
+    let (img, st) = r.render(&ctx.scene(), &Arc::new(env), &cam, &s).unwrap();
+    (img, st.rays.reflection)
+}
+
+/// Ray-tree pruning (`MIN_RAY_WEIGHT`): between mirrors of reflectance 0.1
+/// a third bounce would weigh 0.001, below the limit, so depth 3 and 5
+/// give the depth-2 image and rays, bit for bit; at 0.2 (0.008) it is
+/// traced and changes the image. Packets and single rays prune alike.
+#[test]
+fn bounces_below_the_least_weight_are_not_traced() {
+    use openrt_core::{Backend, MIN_RAY_WEIGHT};
+    const { assert!(0.1f32 * 0.1 * 0.1 < MIN_RAY_WEIGHT && 0.2f32 * 0.2 * 0.2 >= MIN_RAY_WEIGHT) };
+    const { assert!(0.1f32 * 0.1 >= MIN_RAY_WEIGHT, "the second bounce must still be traced") };
+    for backend in [Backend::Kd, Backend::KdSingle] {
+        let (two, rays_two) = hall_of_mirrors(0.1, 2, backend);
+        for depth in [3, 5] {
+            let (deep, rays_deep) = hall_of_mirrors(0.1, depth, backend);
+            assert_eq!(rays_deep, rays_two, "{backend:?} depth {depth}: reflection rays");
+            assert!(deep.pixels == two.pixels, "{backend:?} depth {depth}: image");
+        }
+        let (two, rays_two) = hall_of_mirrors(0.2, 2, backend);
+        let (three, rays_three) = hall_of_mirrors(0.2, 3, backend);
+        assert!(rays_three > rays_two, "{backend:?}: {rays_three} > {rays_two}");
+        assert!(three.pixels != two.pixels, "{backend:?}: the third bounce shows");
+    }
+    // Single rays and packets: the same bytes and rays where pruning cuts.
+    let (a, ra) = hall_of_mirrors(0.1, 3, Backend::Kd);
+    let (b, rb) = hall_of_mirrors(0.1, 3, Backend::KdSingle);
+    assert_eq!(ra, rb);
+    assert!(a.pixels == b.pixels);
+}
