@@ -136,7 +136,8 @@ struct Quality {
     /// Shading mode.
     #[arg(long, value_enum, default_value_t = Mode::Whitted)]
     mode: Mode,
-    /// Reflection/refraction depth.
+    /// Reflection/refraction depth (a bounce whose weight in the pixel is below
+    /// 1/255 in every channel stops sooner: `openrt_core::MIN_RAY_WEIGHT`).
     #[arg(long, default_value_t = 3)]
     depth: u32,
     /// Render threads (default: all cores).

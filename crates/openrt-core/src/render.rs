@@ -99,7 +99,9 @@ pub struct RenderSettings {
     pub height: u32,
     /// Shading mode.
     pub mode: RenderMode,
-    /// Largest number of reflection/refraction bounces (Whitted mode).
+    /// Largest number of reflection/refraction bounces (Whitted mode); a
+    /// bounce whose weight in the pixel falls below
+    /// [`MIN_RAY_WEIGHT`](crate::MIN_RAY_WEIGHT) is not traced.
     pub max_depth: u32,
     /// Texture filtering (trilinear by default, with ray-cone level of detail).
     pub texture_filter: TextureFilter,
