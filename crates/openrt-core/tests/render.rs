@@ -857,21 +857,23 @@ fn bounces_below_the_least_weight_are_not_traced() {
     use openrt_core::{Backend, MIN_RAY_WEIGHT};
     const { assert!(0.1f32 * 0.1 * 0.1 < MIN_RAY_WEIGHT && 0.2f32 * 0.2 * 0.2 >= MIN_RAY_WEIGHT) };
     const { assert!(0.1f32 * 0.1 >= MIN_RAY_WEIGHT, "the second bounce must still be traced") };
-    for backend in [Backend::Kd, Backend::KdSingle] {
+    let pruned = [Backend::Kd, Backend::KdSingle].map(|backend| {
         let (two, rays_two) = hall_of_mirrors(0.1, 2, backend);
-        for depth in [3, 5] {
+        let deep = [3, 5].map(|depth| {
             let (deep, rays_deep) = hall_of_mirrors(0.1, depth, backend);
             assert_eq!(rays_deep, rays_two, "{backend:?} depth {depth}: reflection rays");
             assert!(deep.pixels == two.pixels, "{backend:?} depth {depth}: image");
-        }
+            (deep, rays_deep)
+        });
         let (two, rays_two) = hall_of_mirrors(0.2, 2, backend);
         let (three, rays_three) = hall_of_mirrors(0.2, 3, backend);
         assert!(rays_three > rays_two, "{backend:?}: {rays_three} > {rays_two}");
         assert!(three.pixels != two.pixels, "{backend:?}: the third bounce shows");
-    }
+        let [(depth3, rays3), _] = deep;
+        (depth3, rays3)
+    });
     // Single rays and packets: the same bytes and rays where pruning cuts.
-    let (a, ra) = hall_of_mirrors(0.1, 3, Backend::Kd);
-    let (b, rb) = hall_of_mirrors(0.1, 3, Backend::KdSingle);
+    let [(a, ra), (b, rb)] = pruned;
     assert_eq!(ra, rb);
     assert!(a.pixels == b.pixels);
 }
