@@ -20,7 +20,7 @@ use openrt_accel::BuilderKind;
 use serde::{Deserialize, Serialize};
 
 use crate::context::{InstanceSlot, ObjectSlot, Promotion};
-use crate::object::{ObjectGeometry, ObjectMesh, ShadingData};
+use crate::object::{ObjectMesh, ShadingData};
 use crate::{Context, CoreError, Material, MaterialId, ObjectId, Texture, TextureId};
 
 /// A material as plain data.
@@ -537,10 +537,7 @@ impl Context {
                     })?;
                     s.promotion = Some(Promotion::Ready {
                         version: s.version,
-                        result: Ok(Arc::new(ObjectGeometry {
-                            tree,
-                            shading: Arc::clone(&geom.shading),
-                        })),
+                        result: Ok(Arc::new(geom.with_tree(tree))),
                     });
                 }
             }

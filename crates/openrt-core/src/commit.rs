@@ -228,10 +228,7 @@ impl Context {
                     ms: t0.elapsed().as_secs_f64() * 1e3,
                     refitted: tree.refitted(),
                 });
-                staged[index] = Some(Arc::new(ObjectGeometry {
-                    tree,
-                    shading: Arc::new(mesh.shading.clone()),
-                }));
+                staged[index] = Some(Arc::new(ObjectGeometry::new(tree, mesh.shading.clone())));
                 continue;
             }
             // Collect a finished background build; a result for older
@@ -468,7 +465,7 @@ impl Context {
                     if promote_after.is_some_and(|n| slot.unchanged_commits >= n) && in_flight < slots {
                         in_flight += 1;
                         let tris = geom.tree.triangles().to_vec();
-                        let shading = Arc::clone(&geom.shading);
+                        let old = Arc::clone(geom);
                         let (tx, rx) = crossbeam::channel::bounded(1);
                         // On the commit's own pool: no thread is spawned.
                         self.bsp_builder.spawn(move || {
@@ -478,7 +475,7 @@ impl Context {
                                 ObjectTree::build(crate::Accel::Kd, tris, BuilderKind::Sah, None)
                             };
                             let _ = tx.send(
-                                tree.map(|tree| Arc::new(ObjectGeometry { tree, shading }))
+                                tree.map(|tree| Arc::new(old.with_tree(tree)))
                                     .map_err(|e| e.to_string()),
                             );
                         });

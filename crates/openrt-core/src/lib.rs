@@ -95,6 +95,7 @@ mod primitive;
 mod render;
 mod scene;
 mod shade;
+mod shading_record;
 mod simd;
 mod surface_lanes;
 mod texture;

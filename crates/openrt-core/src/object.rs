@@ -9,6 +9,7 @@ use openrt_accel::{
 };
 
 use crate::MaterialId;
+use crate::shading_record::ShadingRecord;
 
 /// Per-triangle shading attributes of an object, in object space.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -241,9 +242,32 @@ pub struct ObjectGeometry {
     pub tree: ObjectTree,
     /// Shading attributes indexed by `Hit::prim`.
     pub shading: Arc<ShadingData>,
+    /// The same attributes, one cache line per triangle: what the renderer
+    /// reads.
+    pub(crate) records: Arc<[ShadingRecord]>,
 }
 
 impl ObjectGeometry {
+    /// `tree` with the shading attributes `shading`, packed for the
+    /// renderer.
+    pub(crate) fn new(tree: ObjectTree, shading: ShadingData) -> Self {
+        Self {
+            tree,
+            records: ShadingRecord::all(&shading).into(),
+            shading: Arc::new(shading),
+        }
+    }
+
+    /// Another tree over this geometry's triangles, with its shading
+    /// (shared, not copied).
+    pub(crate) fn with_tree(&self, tree: ObjectTree) -> Self {
+        Self {
+            tree,
+            shading: Arc::clone(&self.shading),
+            records: Arc::clone(&self.records),
+        }
+    }
+
     /// Which builder made the tree.
     #[must_use]
     pub fn builder(&self) -> BuilderKind {

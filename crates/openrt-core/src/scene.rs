@@ -725,7 +725,7 @@ impl Scene {
         let inst = self.instances.get(hit.instance as usize)?;
         let p = hit.prim as usize;
         let tri = inst.geometry.tree.triangles().get(p)?;
-        let sh = &inst.geometry.shading;
+        let rec = inst.geometry.records.get(p)?;
         let b0 = 1.0 - hit.b1 - hit.b2;
         // PERF: an instance without a transform skips the matrix products
         // (the same values; at most the sign of a zero differs, which no
@@ -737,14 +737,12 @@ impl Scene {
         } else {
             (inst.normal_matrix * ng_obj * inst.det_sign).normalize_or_zero()
         };
-        let shading_normal = if sh.has_normals[p] {
-            let n = sh.normals[p];
-            let ns = to_world_normal(n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero();
-            if ns == Vec3::ZERO { geometric_normal } else { ns }
-        } else {
-            geometric_normal
-        };
-        let uv = sh.uvs[p];
+        // NOTE: a triangle without vertex normals has zero normals in its
+        // record (`ShadingRecord`), so it takes the geometric normal here.
+        let n = rec.normals;
+        let ns = to_world_normal(n[0] * b0 + n[1] * hit.b1 + n[2] * hit.b2).normalize_or_zero();
+        let shading_normal = if ns == Vec3::ZERO { geometric_normal } else { ns };
+        let uv = rec.uvs;
         // NOTE: the hit point is interpolated from the world-space vertices
         // (Wächter & Binder, Ray Tracing Gems ch. 6): its error is a few ulps
         // of its magnitude, unlike origin + t * dir.
@@ -766,7 +764,7 @@ impl Scene {
             uv: uv[0] * b0 + uv[1] * hit.b1 + uv[2] * hit.b2,
             uv_area,
             world_area,
-            material: sh.materials[p],
+            material: rec.material,
             instance: inst.id,
             object: inst.object,
         })

@@ -396,7 +396,6 @@ impl Scene {
         let mut tri = [[Vec3A::ZERO; M]; 3];
         let mut nrm = [[Vec3A::ZERO; M]; 3];
         let mut uvs = [[Vec2::ZERO; M]; 3];
-        let mut has_normals = 0u32;
         let (mut b1, mut b2) = ([0.0; M], [0.0; M]);
         for i in 0..n {
             let Some(hit) = hits[i].filter(|h| h.frame == self.frame) else {
@@ -406,19 +405,16 @@ impl Scene {
                 continue;
             };
             let p = hit.prim as usize;
-            let Some(t) = inst.geometry.tree.triangles().get(p) else {
+            let (Some(t), Some(rec)) = (inst.geometry.tree.triangles().get(p), inst.geometry.records.get(p)) else {
                 continue;
             };
-            let sh = &inst.geometry.shading;
-            let (nv, uv) = (&sh.normals[p], &sh.uvs[p]);
             for k in 0..3 {
                 tri[k][i] = t[k].into();
-                nrm[k][i] = nv[k].into();
-                uvs[k][i] = uv[k];
+                nrm[k][i] = rec.normals[k].into();
+                uvs[k][i] = rec.uvs[k];
             }
-            has_normals |= u32::from(sh.has_normals[p]) << i;
             (b1[i], b2[i]) = (hit.b1, hit.b2);
-            found[i] = Some((hit, inst, sh.materials[p]));
+            found[i] = Some((hit, inst, rec.material));
         }
         let first = found.iter().flatten().next().map(|f| f.1)?;
         let (b1, b2) = (F::from_fn(|i| b1[i]), F::from_fn(|i| b2[i]));
@@ -491,7 +487,9 @@ impl Scene {
         };
         let zero = F::splat(0.0);
         let zero = ns.x.eq(zero) & ns.y.eq(zero) & ns.z.eq(zero);
-        let shading = Lanes::select(zero, &geometric, &Lanes::select(F::mask(has_normals), &ns, &geometric));
+        // NOTE: triangles without vertex normals have zero normals in their
+        // records: they take the geometric normal here.
+        let shading = Lanes::select(zero, &geometric, &ns);
         let point = interpolate(&w, &b);
         let inf = F::splat(f32::INFINITY);
         let finite = (point.x.abs().lt(inf) & point.y.abs().lt(inf) & point.z.abs().lt(inf)).bitmask();

@@ -1,0 +1,177 @@
+//! One triangle's shading attributes packed in one cache line.
+//!
+//! [`ShadingData`] keeps a triangle's vertex normals, texture coordinates,
+//! normal flag and material in four arrays: a hit on it reads four to seven
+//! cache lines (36- and 24-byte records straddle lines). Bounce and shadow
+//! hits of a Whitted frame land on scattered triangles, so the shading of
+//! a packet waits on those misses one lane after another. A
+//! [`ShadingRecord`] holds the same values in one aligned 64-byte line,
+//! which the renderer reads instead ([`ObjectGeometry`](crate::ObjectGeometry)
+//! keeps both: the arrays are the API's form).
+
+use glam::{Vec2, Vec3};
+
+use crate::{MaterialId, ShadingData};
+
+/// A triangle's vertex normals, texture coordinates and material, in one
+/// cache line.
+///
+/// A triangle without vertex normals stores zero normals: its
+/// interpolated normal is then zero, which the surface reconstruction
+/// replaces with the geometric normal, exactly as it does for a triangle
+/// whose given normals interpolate to zero; so the record needs no flag
+/// (and fits 64 bytes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub(crate) struct ShadingRecord {
+    /// Object-space vertex normals; zero where the triangle has none.
+    pub normals: [Vec3; 3],
+    /// Texture coordinates of the three vertices.
+    pub uvs: [Vec2; 3],
+    /// The triangle's material.
+    pub material: MaterialId,
+}
+
+impl ShadingRecord {
+    /// Triangle `p`'s record of `data`.
+    fn of(data: &ShadingData, p: usize) -> Self {
+        Self {
+            normals: if data.has_normals[p] {
+                data.normals[p]
+            } else {
+                [Vec3::ZERO; 3]
+            },
+            uvs: data.uvs[p],
+            material: data.materials[p],
+        }
+    }
+
+    /// Every triangle's record of `data`, in triangle order (the four
+    /// arrays have one entry per triangle: `commit` checks this).
+    pub(crate) fn all(data: &ShadingData) -> Vec<Self> {
+        let n = data
+            .materials
+            .len()
+            .min(data.normals.len())
+            .min(data.has_normals.len())
+            .min(data.uvs.len());
+        (0..n).map(|p| Self::of(data, p)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_record_is_one_cache_line() {
+        assert_eq!(size_of::<ShadingRecord>(), 64);
+        assert_eq!(align_of::<ShadingRecord>(), 64);
+    }
+
+    #[test]
+    fn records_hold_the_arrays_values_and_zero_normals_where_none_were_given() {
+        let n = |x: f32| [Vec3::new(x, 0.0, 1.0), Vec3::Y, Vec3::Z];
+        let data = ShadingData {
+            normals: vec![n(1.0), n(2.0)],
+            has_normals: vec![true, false],
+            uvs: vec![
+                [Vec2::X, Vec2::Y, Vec2::ONE],
+                [Vec2::ZERO, Vec2::X, Vec2::new(0.5, 2.0)],
+            ],
+            materials: vec![MaterialId(3), MaterialId(7)],
+        };
+        let r = ShadingRecord::all(&data);
+        assert_eq!(r.len(), 2);
+        assert_eq!(r[0].normals, n(1.0));
+        assert_eq!(r[1].normals, [Vec3::ZERO; 3]);
+        assert_eq!(r[0].uvs, data.uvs[0]);
+        assert_eq!(r[1].uvs, data.uvs[1]);
+        assert_eq!(r[0].material, MaterialId(3));
+        assert_eq!(r[1].material, MaterialId(7));
+        assert_eq!(r.as_ptr() as usize % 64, 0, "records start on a line");
+    }
+
+    /// The surfaces read from the records against the rule they stand
+    /// for: a triangle with vertex normals is shaded with them (moved by
+    /// the instance's normal matrix), one without with its geometric
+    /// normal; through the scalar surface and four lanes alike.
+    #[test]
+    fn surfaces_take_given_normals_and_the_geometric_normal_where_none_were_given() {
+        use crate::{Context, PrimitiveKind};
+        use glam::{Mat4, Quat};
+        use openrt_accel::Ray;
+        let mut ctx = Context::new();
+        let obj = ctx.gen_object();
+        ctx.begin_object(obj).unwrap();
+        ctx.begin(PrimitiveKind::Triangles).unwrap();
+        let tilted = Vec3::new(0.3, 0.2, 1.0).normalize();
+        ctx.normal(tilted).unwrap();
+        for v in [
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(0.0, -1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        ] {
+            ctx.vertex(v).unwrap();
+        }
+        ctx.clear_normal().unwrap();
+        for v in [
+            Vec3::new(0.5, -1.0, 0.0),
+            Vec3::new(1.5, -1.0, 0.0),
+            Vec3::new(0.5, 1.0, 0.0),
+        ] {
+            ctx.vertex(v).unwrap();
+        }
+        ctx.end().unwrap();
+        ctx.end_object().unwrap();
+        let rotation = Quat::from_rotation_y(0.6) * Quat::from_rotation_x(-0.4);
+        ctx.load_matrix(Mat4::from_rotation_translation(rotation, Vec3::new(2.0, 0.0, -3.0)))
+            .unwrap();
+        ctx.instantiate(obj).unwrap();
+        ctx.commit().unwrap();
+        let scene = ctx.scene();
+        let world = |p: Vec3| rotation * p + Vec3::new(2.0, 0.0, -3.0);
+        let rays = [Vec3::new(-0.7, -0.5, 0.0), Vec3::new(0.7, -0.5, 0.0)].map(|p| {
+            let target = world(p);
+            let o = target + rotation * Vec3::new(0.1, 0.0, 4.0);
+            Ray::new(o, target - o, 0.0, f32::INFINITY)
+        });
+        let hits = rays
+            .each_ref()
+            .map(|r| scene.intersect(r).expect("each ray hits its triangle"));
+        let geometric = (rotation * Vec3::Z).normalize();
+        let want = [(rotation * tilted).normalize(), geometric];
+        for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
+            let s = scene.surface(ray, hit).unwrap();
+            assert_eq!(hit.prim as usize, i);
+            assert!(
+                s.geometric_normal.abs_diff_eq(geometric, 1e-5),
+                "{i}: {:?}",
+                s.geometric_normal
+            );
+            assert!(
+                s.shading_normal.abs_diff_eq(want[i], 1e-5),
+                "{i}: {:?}",
+                s.shading_normal
+            );
+        }
+        assert_eq!(
+            scene.surface(&rays[1], &hits[1]).unwrap().shading_normal,
+            scene.surface(&rays[1], &hits[1]).unwrap().geometric_normal
+        );
+        let (ray_refs, hit_refs) = (
+            [&rays[0], &rays[1], &rays[0], &rays[1]],
+            [Some(&hits[0]), Some(&hits[1]), None, None],
+        );
+        let mut seen = 0;
+        scene.own_surfaces::<wide::f32x4>(&ray_refs, &hit_refs, |i, s, _| {
+            seen |= 1 << i;
+            assert!(
+                s.shading_normal.abs_diff_eq(want[i], 1e-5),
+                "lane {i}: {:?}",
+                s.shading_normal
+            );
+        });
+        assert_eq!(seen, 0b11);
+    }
+}
