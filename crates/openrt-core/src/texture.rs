@@ -5,6 +5,7 @@
 use glam::{Vec2, Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
+mod byte_texels;
 mod lanes;
 
 pub(crate) use lanes::{takes_lanes, trilinear_lanes};
@@ -135,9 +136,22 @@ struct Level {
     /// blend's register (robots GL-like textures phase 0.93x the time of
     /// 12-byte texels, 1.33x the memory).
     texels: Vec<Vec3A>,
+    /// The same texels as bytes where every one is `byte / 255`
+    /// (`byte_texels.rs`), else empty; the lookups read these.
+    bytes: Vec<[u8; 4]>,
 }
 
 impl Level {
+    /// A level of `width * height` texels, kept as bytes too where they are.
+    fn new(width: usize, height: usize, texels: Vec<Vec3A>) -> Self {
+        Self {
+            width,
+            height,
+            bytes: byte_texels::encode_all(&texels),
+            texels,
+        }
+    }
+
     fn texel(&self, x: usize, y: usize) -> Vec3 {
         self.texel_a(x, y).into()
     }
@@ -145,7 +159,12 @@ impl Level {
     /// The texel at `(x, y)` as stored.
     #[inline]
     fn texel_a(&self, x: usize, y: usize) -> Vec3A {
-        self.texels[y * self.width + x]
+        let i = y * self.width + x;
+        if self.bytes.is_empty() {
+            self.texels[i]
+        } else {
+            byte_texels::decode(self.bytes[i])
+        }
     }
 
     /// The next level: half the size (rounded up), each texel the box
@@ -162,11 +181,7 @@ impl Level {
                 texels.push(sum * 0.25);
             }
         }
-        Self {
-            width: w,
-            height: h,
-            texels,
-        }
+        Self::new(w, h, texels)
     }
 
     /// Bilinear sample with repeat addressing; `uv` is finite.
@@ -249,7 +264,7 @@ impl Texture {
             return None;
         }
         let texels = texels.into_iter().map(Vec3A::from).collect();
-        let mut levels = vec![Level { width, height, texels }];
+        let mut levels = vec![Level::new(width, height, texels)];
         while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
             let next = last.halve();
             levels.push(next);
