@@ -365,13 +365,14 @@ impl Context {
                 Some((mesh_data(p), sah))
             } else if std::mem::take(&mut slot.resend) {
                 slot.geometry.as_ref().map(|g| {
+                    let sh = g.shading();
                     (
                         MeshData {
                             triangles: g.tree.triangles().iter().map(|t| t.map(v3)).collect(),
-                            normals: g.shading.normals.iter().map(|n| n.map(v3)).collect(),
-                            has_normals: g.shading.has_normals.clone(),
-                            uvs: g.shading.uvs.iter().map(|uv| uv.map(|c| c.to_array())).collect(),
-                            materials: g.shading.materials.iter().map(|m| m.0).collect(),
+                            normals: sh.normals.iter().map(|n| n.map(v3)).collect(),
+                            has_normals: sh.has_normals,
+                            uvs: sh.uvs.iter().map(|uv| uv.map(|c| c.to_array())).collect(),
+                            materials: sh.materials.iter().map(|m| m.0).collect(),
                             dropped: 0,
                         },
                         g.builder() == BuilderKind::Sah,

@@ -228,7 +228,13 @@ impl Context {
                     ms: t0.elapsed().as_secs_f64() * 1e3,
                     refitted: tree.refitted(),
                 });
-                staged[index] = Some(Arc::new(ObjectGeometry::new(tree, mesh.shading.clone())));
+                // PERF: a large object's records are made on the pool's threads.
+                let geometry = if n >= crate::shading_record::PARALLEL_SHADING_RECORDS {
+                    self.bsp_builder.install(|| ObjectGeometry::new(tree, &mesh.shading))
+                } else {
+                    ObjectGeometry::new(tree, &mesh.shading)
+                };
+                staged[index] = Some(Arc::new(geometry));
                 continue;
             }
             // Collect a finished background build; a result for older

@@ -75,7 +75,7 @@ impl ObjectSlot {
             self.forced_builder = Some(g.builder());
             self.pending = Some(crate::ObjectMesh {
                 triangles: g.tree.triangles().to_vec(),
-                shading: (*g.shading).clone(),
+                shading: g.shading(),
                 dropped: 0,
             });
         }

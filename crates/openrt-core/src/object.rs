@@ -240,21 +240,23 @@ impl ObjectTree {
 pub struct ObjectGeometry {
     /// The object's tree (owns the triangles).
     pub tree: ObjectTree,
-    /// Shading attributes indexed by `Hit::prim`.
-    pub shading: Arc<ShadingData>,
-    /// The same attributes, one cache line per triangle: what the renderer
-    /// reads.
-    pub(crate) records: Arc<[ShadingRecord]>,
+    /// Each triangle's shading attributes in one cache line, indexed by
+    /// `Hit::prim`: what the renderer reads.
+    pub(crate) records: Arc<Vec<ShadingRecord>>,
+    /// [`ShadingData::has_normals`] (the records hold zero normals where it
+    /// is `false`).
+    has_normals: Arc<Vec<bool>>,
 }
 
 impl ObjectGeometry {
-    /// `tree` with the shading attributes `shading`, packed for the
-    /// renderer.
-    pub(crate) fn new(tree: ObjectTree, shading: ShadingData) -> Self {
+    /// `tree` with the shading attributes `shading` (one entry per
+    /// triangle of the tree), packed for the renderer; on the pool's threads
+    /// when called on a pool and the object is large.
+    pub(crate) fn new(tree: ObjectTree, shading: &ShadingData) -> Self {
         Self {
             tree,
-            records: ShadingRecord::all(&shading).into(),
-            shading: Arc::new(shading),
+            records: Arc::new(ShadingRecord::all(shading)),
+            has_normals: Arc::new(shading.has_normals.clone()),
         }
     }
 
@@ -263,9 +265,18 @@ impl ObjectGeometry {
     pub(crate) fn with_tree(&self, tree: ObjectTree) -> Self {
         Self {
             tree,
-            shading: Arc::clone(&self.shading),
             records: Arc::clone(&self.records),
+            has_normals: Arc::clone(&self.has_normals),
         }
+    }
+
+    /// The shading attributes in the API's form, indexed by `Hit::prim`:
+    /// the definition's, except that a triangle without vertex normals
+    /// lists its geometric normal (the unnormalised edge cross product,
+    /// as the API fills it in) whatever the definition held there.
+    #[must_use]
+    pub fn shading(&self) -> ShadingData {
+        ShadingRecord::data(&self.records, &self.has_normals, self.tree.triangles())
     }
 
     /// Which builder made the tree.

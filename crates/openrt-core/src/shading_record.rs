@@ -10,6 +10,8 @@
 //! keeps both: the arrays are the API's form).
 
 use glam::{Vec2, Vec3};
+use openrt_accel::Triangle;
+use rayon::prelude::*;
 
 use crate::{MaterialId, ShadingData};
 
@@ -47,7 +49,9 @@ impl ShadingRecord {
     }
 
     /// Every triangle's record of `data`, in triangle order (the four
-    /// arrays have one entry per triangle: `commit` checks this).
+    /// arrays have one entry per triangle: `commit` checks this); from
+    /// [`PARALLEL_SHADING_RECORDS`] triangles on the threads of the pool
+    /// it is called on.
     pub(crate) fn all(data: &ShadingData) -> Vec<Self> {
         let n = data
             .materials
@@ -55,9 +59,40 @@ impl ShadingRecord {
             .min(data.normals.len())
             .min(data.has_normals.len())
             .min(data.uvs.len());
-        (0..n).map(|p| Self::of(data, p)).collect()
+        if n >= PARALLEL_SHADING_RECORDS {
+            (0..n)
+                .into_par_iter()
+                .with_min_len(PARALLEL_SHADING_RECORDS / 4)
+                .map(|p| Self::of(data, p))
+                .collect()
+        } else {
+            (0..n).map(|p| Self::of(data, p)).collect()
+        }
+    }
+
+    /// The attributes of `records` in [`ShadingData`]'s form: triangle
+    /// `p` without vertex normals (`has_normals[p]` false) lists the
+    /// geometric normal of `triangles[p]`, `(b - a) x (c - a)`, as
+    /// [`crate::Context`] fills it in.
+    pub(crate) fn data(records: &[Self], has_normals: &[bool], triangles: &[Triangle]) -> ShadingData {
+        let mut d = ShadingData::default();
+        for ((r, &given), t) in records.iter().zip(has_normals).zip(triangles) {
+            d.normals.push(if given {
+                r.normals
+            } else {
+                [(t[1] - t[0]).cross(t[2] - t[0]); 3]
+            });
+            d.has_normals.push(given);
+            d.uvs.push(r.uvs);
+            d.materials.push(r.material);
+        }
+        d
     }
 }
+
+/// Objects of at least this many triangles have their records made on
+/// the pool's threads (a 100k-triangle figure redefined every frame).
+pub(crate) const PARALLEL_SHADING_RECORDS: usize = 16_384;
 
 #[cfg(test)]
 mod tests {
@@ -90,6 +125,23 @@ mod tests {
         assert_eq!(r[0].material, MaterialId(3));
         assert_eq!(r[1].material, MaterialId(7));
         assert_eq!(r.as_ptr() as usize % 64, 0, "records start on a line");
+    }
+
+    #[test]
+    fn large_objects_get_the_same_records_on_the_pool() {
+        let n = PARALLEL_SHADING_RECORDS + 3;
+        let data = ShadingData {
+            normals: (0..n).map(|i| [Vec3::splat(i as f32), Vec3::X, Vec3::Y]).collect(),
+            has_normals: (0..n).map(|i| i % 3 != 0).collect(),
+            uvs: (0..n).map(|i| [Vec2::splat(i as f32 * 0.5); 3]).collect(),
+            materials: (0..n).map(|i| MaterialId(i as u32 % 5)).collect(),
+        };
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+        let parallel = pool.install(|| ShadingRecord::all(&data));
+        let serial: Vec<ShadingRecord> = (0..n).map(|p| ShadingRecord::of(&data, p)).collect();
+        assert_eq!(parallel, serial);
+        assert_eq!(parallel[0].normals, [Vec3::ZERO; 3]);
+        assert_eq!(parallel[n - 2].normals[0], Vec3::splat((n - 2) as f32));
     }
 
     /// The surfaces read from the records against the rule they stand
@@ -130,6 +182,14 @@ mod tests {
         ctx.instantiate(obj).unwrap();
         ctx.commit().unwrap();
         let scene = ctx.scene();
+        // The API's form comes back from the records: the given normals, and
+        // the geometric normal (unnormalised) where none were given.
+        let back = scene.instances()[0].geometry.shading();
+        assert_eq!(back.has_normals, vec![true, false]);
+        assert_eq!(back.normals[0], [tilted; 3]);
+        assert_eq!(back.normals[1], [Vec3::new(0.0, 0.0, 2.0); 3]);
+        assert_eq!(back.uvs, vec![[Vec2::ZERO; 3]; 2]);
+        assert_eq!(back.materials, vec![ctx.current_material(); 2]);
         let world = |p: Vec3| rotation * p + Vec3::new(2.0, 0.0, -3.0);
         let rays = [Vec3::new(-0.7, -0.5, 0.0), Vec3::new(0.7, -0.5, 0.0)].map(|p| {
             let target = world(p);

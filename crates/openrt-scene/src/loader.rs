@@ -1067,7 +1067,7 @@ impl Builder {
 fn emit_world_triangles(ctx: &mut Context, scene: &openrt_core::Scene) -> Result<(), openrt_core::CoreError> {
     for r in scene.instances() {
         let tris = r.geometry.tree.triangles();
-        let sh = &r.geometry.shading;
+        let sh = r.geometry.shading();
         let mut positions = Vec::with_capacity(tris.len() * 3);
         let mut normals = Vec::with_capacity(tris.len() * 3);
         let mut uvs = Vec::with_capacity(tris.len() * 3);

@@ -515,7 +515,7 @@ fn texture_transforms_emissive_textures_and_strength_are_read() {
             Vec2::new(offset[0] + c * su - s * sv, offset[1] + s * su + c * sv)
         })
         .collect();
-    let got = scene.instances()[0].geometry.shading.uvs[0];
+    let got = scene.instances()[0].geometry.shading().uvs[0];
     for (g, w) in got.iter().zip(&want) {
         assert!((*g - *w).length() < 1e-6, "{got:?} against {want:?}");
     }
@@ -554,7 +554,7 @@ fn unlit_materials_show_their_base_colour() {
     let path = b.write_gltf(dir.path(), "unlit", doc);
     let p = player(&path);
     let scene = p.ctx.scene();
-    let m = &scene.materials()[scene.instances()[0].geometry.shading.materials[0].index() as usize];
+    let m = &scene.materials()[scene.instances()[0].geometry.shading().materials[0].index() as usize];
     assert_eq!(m.emission, Vec3::new(0.75, 0.5, 0.25));
     assert_eq!((m.ambient, m.diffuse, m.specular), (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO));
     let settings = openrt_core::RenderSettings {
