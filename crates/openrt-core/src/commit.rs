@@ -230,9 +230,10 @@ impl Context {
                 });
                 // PERF: a large object's records are made on the pool's threads.
                 let geometry = if n >= crate::shading_record::PARALLEL_SHADING_RECORDS {
-                    self.bsp_builder.install(|| ObjectGeometry::new(tree, &mesh.shading))
+                    self.bsp_builder
+                        .install(|| ObjectGeometry::new(tree, &mesh.shading, &self.record_bin))
                 } else {
-                    ObjectGeometry::new(tree, &mesh.shading)
+                    ObjectGeometry::new(tree, &mesh.shading, &self.record_bin)
                 };
                 staged[index] = Some(Arc::new(geometry));
                 continue;

@@ -224,6 +224,8 @@ pub struct Context {
     /// Keeps the top-level build's scratch memory from frame to frame; runs
     /// on `pool`.
     pub(crate) bsp_builder: openrt_accel::BspBuilder,
+    /// Record buffers of dropped large objects, for the next commits.
+    pub(crate) record_bin: Arc<crate::shading_record::RecordBin>,
     /// Failures injected by the unit tests (absent from other builds).
     #[cfg(test)]
     pub(crate) hooks: TestHooks,
@@ -267,6 +269,7 @@ impl Context {
             top_level: crate::TopLevel::default(),
             pool,
             bsp_builder,
+            record_bin: Arc::default(),
             #[cfg(test)]
             hooks: TestHooks::default(),
             change_log: None,

@@ -9,7 +9,7 @@ use openrt_accel::{
 };
 
 use crate::MaterialId;
-use crate::shading_record::ShadingRecord;
+use crate::shading_record::{RecordBin, Records, ShadingRecord};
 
 /// Per-triangle shading attributes of an object, in object space.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -242,7 +242,7 @@ pub struct ObjectGeometry {
     pub tree: ObjectTree,
     /// Each triangle's shading attributes in one cache line, indexed by
     /// `Hit::prim`: what the renderer reads.
-    pub(crate) records: Arc<Vec<ShadingRecord>>,
+    pub(crate) records: Arc<Records>,
     /// [`ShadingData::has_normals`] (the records hold zero normals where it
     /// is `false`).
     has_normals: Arc<Vec<bool>>,
@@ -251,11 +251,11 @@ pub struct ObjectGeometry {
 impl ObjectGeometry {
     /// `tree` with the shading attributes `shading` (one entry per
     /// triangle of the tree), packed for the renderer; on the pool's threads
-    /// when called on a pool and the object is large.
-    pub(crate) fn new(tree: ObjectTree, shading: &ShadingData) -> Self {
+    /// when called on a pool and the object is large, in a buffer of `bin`.
+    pub(crate) fn new(tree: ObjectTree, shading: &ShadingData, bin: &Arc<RecordBin>) -> Self {
         Self {
             tree,
-            records: Arc::new(ShadingRecord::all(shading)),
+            records: Arc::new(ShadingRecord::all(shading, bin)),
             has_normals: Arc::new(shading.has_normals.clone()),
         }
     }

@@ -9,6 +9,8 @@
 //! which the renderer reads instead ([`ObjectGeometry`](crate::ObjectGeometry)
 //! keeps both: the arrays are the API's form).
 
+use std::sync::{Arc, Mutex};
+
 use glam::{Vec2, Vec3};
 use openrt_accel::Triangle;
 use rayon::prelude::*;
@@ -35,7 +37,9 @@ pub(crate) struct ShadingRecord {
 }
 
 impl ShadingRecord {
-    /// Triangle `p`'s record of `data`.
+    /// Triangle `p`'s record of `data` (the index-by-index twin of
+    /// [`ShadingRecord::all`]).
+    #[cfg(test)]
     fn of(data: &ShadingData, p: usize) -> Self {
         Self {
             normals: if data.has_normals[p] {
@@ -49,24 +53,42 @@ impl ShadingRecord {
     }
 
     /// Every triangle's record of `data`, in triangle order (the four
-    /// arrays have one entry per triangle: `commit` checks this); from
-    /// [`PARALLEL_SHADING_RECORDS`] triangles on the threads of the pool
-    /// it is called on.
-    pub(crate) fn all(data: &ShadingData) -> Vec<Self> {
-        let n = data
-            .materials
-            .len()
-            .min(data.normals.len())
-            .min(data.has_normals.len())
-            .min(data.uvs.len());
-        if n >= PARALLEL_SHADING_RECORDS {
-            (0..n)
-                .into_par_iter()
-                .with_min_len(PARALLEL_SHADING_RECORDS / 4)
-                .map(|p| Self::of(data, p))
-                .collect()
+    /// arrays have one entry per triangle: `commit` checks this): from
+    /// [`PARALLEL_SHADING_RECORDS`] triangles on the threads of the pool it
+    /// is called on, into a buffer of `bin` when it holds one large enough.
+    pub(crate) fn all(data: &ShadingData, bin: &Arc<RecordBin>) -> Records {
+        // PERF: zipped slices, without an index or its bounds checks: the
+        // records are written once, straight into the vector.
+        let make = |(((n, &given), uv), &material): Attributes<'_>| Self {
+            normals: if given { *n } else { [Vec3::ZERO; 3] },
+            uvs: *uv,
+            material,
+        };
+        let n = data.materials.len();
+        let list = if n >= PARALLEL_SHADING_RECORDS {
+            let mut list = bin.take(n);
+            list.par_extend(
+                data.normals
+                    .par_iter()
+                    .zip(&data.has_normals)
+                    .zip(&data.uvs)
+                    .zip(&data.materials)
+                    .with_min_len(PARALLEL_SHADING_RECORDS / 4)
+                    .map(make),
+            );
+            list
         } else {
-            (0..n).map(|p| Self::of(data, p)).collect()
+            data.normals
+                .iter()
+                .zip(&data.has_normals)
+                .zip(&data.uvs)
+                .zip(&data.materials)
+                .map(make)
+                .collect()
+        };
+        Records {
+            list,
+            bin: (n >= PARALLEL_SHADING_RECORDS).then(|| Arc::clone(bin)),
         }
     }
 
@@ -90,9 +112,84 @@ impl ShadingRecord {
     }
 }
 
+/// One triangle's entries of [`ShadingData`]'s four arrays, zipped.
+type Attributes<'a> = (((&'a [Vec3; 3], &'a bool), &'a [Vec2; 3]), &'a MaterialId);
+
 /// Objects of at least this many triangles have their records made on
-/// the pool's threads (a 100k-triangle figure redefined every frame).
+/// the pool's threads, in a buffer recycled from dropped geometry
+/// ([`RecordBin`]): a 100k-triangle figure redefined every frame.
 pub(crate) const PARALLEL_SHADING_RECORDS: usize = 16_384;
+
+/// The most record buffers a [`RecordBin`] keeps.
+pub(crate) const RECORD_BIN_BUFFERS: usize = 4;
+
+/// The record buffers of dropped large geometry, kept for the next
+/// commits of the same context.
+///
+/// PERF: an object redefined every frame needs a new buffer each commit
+/// (the last frame's scene still reads the old one); fresh memory costs a
+/// page fault per 4 KB on first touch: making 100k records took 4-6 ms
+/// in a fresh buffer against 1 ms in one already touched. The buffers of
+/// the frames before come back here when their scenes are dropped.
+#[derive(Debug, Default)]
+pub(crate) struct RecordBin(Mutex<Vec<Vec<ShadingRecord>>>);
+
+impl RecordBin {
+    /// An empty buffer with room for `n` records: a kept one if one is
+    /// large enough, else a new one.
+    fn take(&self, n: usize) -> Vec<ShadingRecord> {
+        let kept = self.0.lock().ok().and_then(|mut bin| {
+            let i = bin.iter().position(|b| b.capacity() >= n)?;
+            Some(bin.swap_remove(i))
+        });
+        kept.map_or_else(
+            || Vec::with_capacity(n),
+            |mut b| {
+                b.clear();
+                b
+            },
+        )
+    }
+
+    /// Keeps `buffer` for a later [`RecordBin::take`], unless
+    /// [`RECORD_BIN_BUFFERS`] are kept already.
+    fn give(&self, buffer: Vec<ShadingRecord>) {
+        if let Ok(mut bin) = self.0.lock()
+            && bin.len() < RECORD_BIN_BUFFERS
+        {
+            bin.push(buffer);
+        }
+    }
+
+    /// How many buffers are kept.
+    #[cfg(test)]
+    fn len(&self) -> usize {
+        self.0.lock().map_or(0, |b| b.len())
+    }
+}
+
+/// An object's records; a large object's buffer goes back to its
+/// context's [`RecordBin`] when the last geometry sharing it is dropped.
+#[derive(Debug, Default)]
+pub(crate) struct Records {
+    list: Vec<ShadingRecord>,
+    bin: Option<Arc<RecordBin>>,
+}
+
+impl std::ops::Deref for Records {
+    type Target = [ShadingRecord];
+    fn deref(&self) -> &[ShadingRecord] {
+        &self.list
+    }
+}
+
+impl Drop for Records {
+    fn drop(&mut self) {
+        if let Some(bin) = &self.bin {
+            bin.give(std::mem::take(&mut self.list));
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -116,7 +213,7 @@ mod tests {
             ],
             materials: vec![MaterialId(3), MaterialId(7)],
         };
-        let r = ShadingRecord::all(&data);
+        let r = ShadingRecord::all(&data, &Arc::default());
         assert_eq!(r.len(), 2);
         assert_eq!(r[0].normals, n(1.0));
         assert_eq!(r[1].normals, [Vec3::ZERO; 3]);
@@ -137,11 +234,84 @@ mod tests {
             materials: (0..n).map(|i| MaterialId(i as u32 % 5)).collect(),
         };
         let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
-        let parallel = pool.install(|| ShadingRecord::all(&data));
+        let bin = Arc::default();
+        let parallel = pool.install(|| ShadingRecord::all(&data, &bin));
         let serial: Vec<ShadingRecord> = (0..n).map(|p| ShadingRecord::of(&data, p)).collect();
-        assert_eq!(parallel, serial);
-        assert_eq!(parallel[0].normals, [Vec3::ZERO; 3]);
-        assert_eq!(parallel[n - 2].normals[0], Vec3::splat((n - 2) as f32));
+        assert_eq!(*parallel, serial[..]);
+        // Its buffer goes back to the bin when dropped, and the next object's
+        // records of no more triangles are made in it, also on one thread.
+        let at = parallel.as_ptr();
+        drop(parallel);
+        assert_eq!(bin.len(), 1);
+        let again = ShadingRecord::all(&data, &bin);
+        assert_eq!(again.as_ptr(), at);
+        assert_eq!(*again, serial[..]);
+        assert_eq!(bin.len(), 0);
+        // Small objects neither take nor give buffers.
+        let small = ShadingRecord::all(&ShadingData::default(), &bin);
+        drop(small);
+        assert_eq!(bin.len(), 0);
+        assert_eq!(again[0].normals, [Vec3::ZERO; 3]);
+        assert_eq!(again[n - 2].normals[0], Vec3::splat((n - 2) as f32));
+    }
+
+    #[test]
+    fn the_bin_keeps_at_most_its_limit_and_hands_out_buffers_large_enough() {
+        let bin = RecordBin::default();
+        for k in 0..RECORD_BIN_BUFFERS + 3 {
+            bin.give(Vec::with_capacity(10 + k));
+        }
+        assert_eq!(bin.len(), RECORD_BIN_BUFFERS);
+        let big = bin.take(12);
+        assert!(big.capacity() >= 12 && big.is_empty());
+        assert_eq!(bin.len(), RECORD_BIN_BUFFERS - 1);
+        // None large enough: a new buffer, the bin untouched.
+        let new = bin.take(1_000);
+        assert!(new.capacity() >= 1_000);
+        assert_eq!(bin.len(), RECORD_BIN_BUFFERS - 1);
+    }
+
+    /// A context redefining a large object every frame makes each frame's
+    /// records in the buffer of the frame before last, once that frame's
+    /// scene is dropped.
+    #[test]
+    fn redefined_large_objects_reuse_the_buffers_of_dropped_frames() {
+        use crate::{Context, PrimitiveKind};
+        let mut ctx = Context::new();
+        let obj = ctx.gen_object();
+        let n = PARALLEL_SHADING_RECORDS + 10;
+        let define = |ctx: &mut Context, dz: f32| {
+            ctx.begin_object(obj).unwrap();
+            ctx.begin(PrimitiveKind::Triangles).unwrap();
+            for i in 0..n {
+                let x = i as f32;
+                for v in [
+                    Vec3::new(x, 0.0, dz),
+                    Vec3::new(x + 1.0, 0.0, dz),
+                    Vec3::new(x, 1.0, dz),
+                ] {
+                    ctx.vertex(v).unwrap();
+                }
+            }
+            ctx.end().unwrap();
+            ctx.end_object().unwrap();
+        };
+        define(&mut ctx, 0.0);
+        ctx.instantiate(obj).unwrap();
+        ctx.commit().unwrap();
+        let first = ctx.scene().instances()[0].geometry.records.as_ptr();
+        let mut seen = vec![first];
+        for frame in 1..6 {
+            define(&mut ctx, frame as f32);
+            ctx.commit().unwrap();
+            seen.push(ctx.scene().instances()[0].geometry.records.as_ptr());
+        }
+        // Two buffers take turns: each frame's scene holds one while the
+        // next commit fills the other.
+        for w in seen.windows(3) {
+            assert_eq!(w[0], w[2], "{seen:?}");
+            assert_ne!(w[0], w[1], "{seen:?}");
+        }
     }
 
     /// The surfaces read from the records against the rule they stand
