@@ -6,8 +6,8 @@
 //! hits of a Whitted frame land on scattered triangles, so the shading of
 //! a packet waits on those misses one lane after another. A
 //! [`ShadingRecord`] holds the same values in one aligned 64-byte line,
-//! which the renderer reads instead ([`ObjectGeometry`](crate::ObjectGeometry)
-//! keeps both: the arrays are the API's form).
+//! which the renderer reads instead; [`ObjectGeometry`](crate::ObjectGeometry)
+//! keeps only the records and rebuilds the arrays, the API's form, on request.
 
 use std::sync::{Arc, Mutex};
 
@@ -52,8 +52,9 @@ impl ShadingRecord {
         }
     }
 
-    /// Every triangle's record of `data`, in triangle order (the four
-    /// arrays have one entry per triangle: `commit` checks this): from
+    /// Every triangle's record of `data`, in triangle order (the API
+    /// keeps the four arrays one entry per triangle; a shorter one ends
+    /// the records, whose missing hits then have no surface): from
     /// [`PARALLEL_SHADING_RECORDS`] triangles on the threads of the pool it
     /// is called on, into a buffer of `bin` when it holds one large enough.
     pub(crate) fn all(data: &ShadingData, bin: &Arc<RecordBin>) -> Records {
