@@ -8,3 +8,6 @@ pub(crate) mod numeric;
 pub(crate) mod ray;
 pub(crate) mod tri_block;
 pub(crate) mod triangle;
+pub(crate) mod watertight4;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod watertight8;

@@ -1,20 +1,24 @@
-//! Leaf triangles repacked in SIMD blocks for the edge-function pre-test.
+//! Leaf triangles repacked in SIMD blocks, tested four at a time.
 //!
-//! Most triangle tests in a leaf are misses decided by the signs of the three
-//! 2D edge functions of the watertight test (Woop, Benthin & Wald, JCGT 2013).
 //! Each leaf's triangles are copied, [`LANES`] to a block, in
-//! structure-of-arrays order, so one pass of SIMD arithmetic computes the edge
-//! functions of a whole block; only the lanes whose edge functions do not
-//! have mixed signs (the ray's line pierces the triangle, or touches an edge)
-//! go on to the scalar [`intersect_triangle`], which decides everything else.
+//! structure-of-arrays order, so one pass of SIMD arithmetic runs the
+//! watertight test (Woop, Benthin & Wald, JCGT 2013) of a whole block
+//! against a ray (`geom/watertight4.rs`; on AVX2 CPUs two blocks to a
+//! register, `pairs_avx2.rs`). Most tests are misses decided by the signs of
+//! the three 2D edge functions: the blocks' edge functions are computed
+//! first (the pre-test), and only a block with a lane whose edge functions
+//! do not have mixed signs runs the rest of the test. Lanes with an edge
+//! function exactly zero go to the scalar [`intersect_triangle`], which alone
+//! decides those.
 //!
-//! NOTE: the pre-test repeats the scalar kernel's first operations one for
-//! one (the same subtractions and products, in the same order, without
-//! fused multiply-adds), so its edge functions are bit-identical to the
-//! scalar ones and it rejects exactly the triangles the scalar kernel
-//! rejects at that step: results do not change, watertightness included
-//! (tested against the scalar loop in this module and by every oracle test
-//! of the crate).
+//! NOTE: the block test repeats the scalar kernel's operations one for one
+//! (the same subtractions and products, in the same order, without fused
+//! multiply-adds), so it decides each lane as the scalar kernel does, with
+//! the same `t` and barycentrics: results do not change, watertightness
+//! included (tested against the scalar loop in this module and by every
+//! oracle test of the crate).
+
+use std::cmp::Ordering;
 
 use wide::f32x4;
 
@@ -22,6 +26,7 @@ use crate::error::AccelError;
 use crate::geom::ray::Ray;
 use crate::geom::triangle::Triangle;
 use crate::geom::triangle::{TriHit, intersect_triangle};
+use crate::geom::watertight4::{Decided4, Edges4};
 use crate::kd::node::KdNode;
 use crate::leaf::mailbox::TriMailbox;
 use crate::packet::frustum::Frustum;
@@ -65,91 +70,150 @@ pub(crate) fn pack_leaves(
     Ok((new_ids, blocks))
 }
 
-/// The per-ray constants of the pre-test, splatted once per query.
+/// The per-ray constants of the block test, splatted once per query.
 #[derive(Clone, Copy)]
 pub(crate) struct BlockRay {
-    ox: f32x4,
-    oy: f32x4,
-    oz: f32x4,
-    sx: f32x4,
-    sy: f32x4,
-    kx: usize,
-    ky: usize,
-    kz: usize,
+    /// The origin in the ray's axis permutation.
+    pub(super) o: [f32x4; 3],
+    pub(super) sx: f32x4,
+    pub(super) sy: f32x4,
+    pub(super) sz: f32x4,
+    pub(super) t_min: f32x4,
+    pub(super) kx: usize,
+    pub(super) ky: usize,
+    pub(super) kz: usize,
 }
 
 impl BlockRay {
     pub(crate) fn new(ray: &Ray) -> Self {
         let o = ray.origin.to_array();
         Self {
-            ox: f32x4::splat(o[ray.kx]),
-            oy: f32x4::splat(o[ray.ky]),
-            oz: f32x4::splat(o[ray.kz]),
+            o: [
+                f32x4::splat(o[ray.kx]),
+                f32x4::splat(o[ray.ky]),
+                f32x4::splat(o[ray.kz]),
+            ],
             sx: f32x4::splat(ray.shear.x),
             sy: f32x4::splat(ray.shear.y),
+            sz: f32x4::splat(ray.shear.z),
+            t_min: f32x4::splat(ray.t_min),
             kx: ray.kx,
             ky: ray.ky,
             kz: ray.kz,
         }
     }
 
+    /// The edge functions of the block's four triangles.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn edges(&self, b: &TriBlock) -> Edges4 {
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let p = |v: &[f32x4; 3]| [v[kx], v[ky], v[kz]];
+        Edges4::new(&p(&b.v[0]), &p(&b.v[1]), &p(&b.v[2]), &self.o, self.sx, self.sy)
+    }
+
     /// Bit `i` set: lane `i`'s edge functions do not have mixed signs, so
-    /// the scalar test must decide it. A clear bit is a certain miss.
+    /// the rest of the test must decide it. A clear bit is a certain miss.
     #[inline]
     fn candidates(&self, b: &TriBlock) -> u32 {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let proj = |v: &[f32x4; 3]| {
-            let z = v[kz] - self.oz;
-            (v[kx] - self.ox - self.sx * z, v[ky] - self.oy - self.sy * z)
-        };
-        let (ax, ay) = proj(&b.v[0]);
-        let (bx, by) = proj(&b.v[1]);
-        let (cx, cy) = proj(&b.v[2]);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        let zero = f32x4::ZERO;
-        let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
-        let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
-        !(neg & pos).to_bitmask() & ((1 << LANES) - 1)
+        !self.edges(b).mixed().to_bitmask() & ((1 << LANES) - 1)
+    }
+
+    /// The whole test of the block's four triangles over `(t_min, t_max)`:
+    /// lane by lane `intersect_triangle`'s answer, except for the lanes of
+    /// [`Decided4::edge`], which only it decides.
+    #[allow(clippy::inline_always)]
+    #[inline(always)]
+    fn intersect(&self, b: &TriBlock, t_max: f32) -> Decided4 {
+        let e = self.edges(b);
+        e.decide(e.mixed(), self.sz, self.t_min, f32x4::splat(t_max))
     }
 }
 
 /// Blocks whose candidate masks fit one `u64`.
 const CHUNK: usize = 64 / LANES;
 
-/// Calls `visit(prim, triangle)` for each triangle of `leaf` that passes
-/// the block pre-test, in leaf order, until `visit` returns `true` (then
-/// returns `true`). `ids` and `blocks` are as made by [`pack_leaves`].
+/// Calls `visit(prim, hit, bound)` for each triangle of `leaf` that `ray`
+/// hits over `(t_min, bound)`, in leaf order, until `visit` returns `true`
+/// (then returns `true`); `visit` may lower `bound` for the triangles after
+/// it. The hits are those of [`intersect_triangle`] over each triangle in
+/// turn with the bound of its turn, bit for bit. `ids` and `blocks` are as
+/// made by [`pack_leaves`].
 ///
-/// PERF: the triangle is read back from the block just tested (bit-identical
-/// to the triangle array's copy, checked by `validate`), not from the
-/// triangle array, which for incoherent rays is one more cache miss.
+/// The blocks' edge functions are computed first (the pre-test); a block
+/// with a candidate is then tested whole, four triangles to a register
+/// ([`Edges4`]), and only the lanes exactly on an edge go to the scalar
+/// kernel (Embree tests a ray against several triangles the same way).
+///
+/// PERF: the masks of up to `CHUNK` blocks are gathered before any of them
+/// is looked at, so that the pre-tests of a leaf run without a branch on
+/// their results between them. A lane the block test accepted under the
+/// bound of its block's turn is kept under a lower bound only if
+/// `ts < bound * |det|` still holds (the scalar kernel's own comparison); a
+/// bound raised since (a tie's slack) sends the block's candidates to the
+/// scalar kernel instead. Against the pre-test and a scalar test per
+/// candidate (1.8-2.5 per primary ray of which three quarters hit):
+/// see docs/PERFORMANCE.md.
 #[inline]
-fn for_each_candidate(
+fn for_each_hit(
+    ray: &Ray,
     br: &BlockRay,
     leaf: KdNode,
     ids: &[u32],
     blocks: &[TriBlock],
-    mut visit: impl FnMut(u32, &Triangle) -> bool,
+    bound: f32,
+    visit: impl FnMut(u32, TriHit, &mut f32) -> bool,
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    let count = (leaf.prim_count() as usize).div_ceil(LANES);
+    #[cfg(target_arch = "x86_64")]
+    if count >= 2 && crate::packet::width::avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { super::pairs_avx2::for_each_hit_avx2(ray, br, leaf, ids, blocks, bound, visit) };
+    }
+    for_each_hit_portable(ray, br, leaf, ids, blocks, bound, visit)
+}
+
+/// [`for_each_hit`] a block at a time, four triangles to an SSE register
+/// (every CPU; the AVX2 loop's twin).
+#[inline]
+fn for_each_hit_portable(
+    ray: &Ray,
+    br: &BlockRay,
+    leaf: KdNode,
+    ids: &[u32],
+    blocks: &[TriBlock],
+    mut bound: f32,
+    mut visit: impl FnMut(u32, TriHit, &mut f32) -> bool,
 ) -> bool {
     let off = leaf.prim_offset() as usize;
     let first = off / LANES;
     let n = leaf.prim_count() as usize;
     let count = n.div_ceil(LANES);
-    // PERF: the masks of up to `CHUNK` blocks are gathered before any of
-    // them is looked at, so that the pre-tests of a leaf run without a branch
-    // on their results between them.
     for (c, chunk) in blocks[first..first + count].chunks(CHUNK).enumerate() {
         let mut m = 0u64;
         for (k, b) in chunk.iter().enumerate() {
             m |= u64::from(br.candidates(b) & !padding(n, c * CHUNK + k)) << (k * LANES);
         }
         while m != 0 {
-            let bit = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let (k, lane) = (bit / LANES, bit % LANES);
-            if visit(ids[off + (c * CHUNK + k) * LANES + lane], &chunk[k].triangle(lane)) {
+            let k = m.trailing_zeros() as usize / LANES;
+            let lanes = (m >> (k * LANES)) as u32 & ((1 << LANES) - 1);
+            m &= !(((1u64 << LANES) - 1) << (k * LANES));
+            let block = &chunk[k];
+            let start = bound;
+            let d = br.intersect(block, start);
+            let found = Found {
+                hit: d.hit,
+                edge: d.edge,
+                t: d.t.to_array(),
+                b1: d.b1.to_array(),
+                b2: d.b2.to_array(),
+                ts: d.ts.to_array(),
+                abs_det: d.abs_det.to_array(),
+            };
+            let base = off + (c * CHUNK + k) * LANES;
+            let tri = |lane: usize| block.triangle(lane);
+            if found.visit(ray, lanes, start, &mut bound, tri, |lane| ids[base + lane], &mut visit) {
                 return true;
             }
         }
@@ -157,12 +221,66 @@ fn for_each_candidate(
     false
 }
 
+/// A block test's answers for `W` lanes (one block, or two with AVX2).
+pub(super) struct Found<const W: usize> {
+    pub(super) hit: u32,
+    pub(super) edge: u32,
+    pub(super) t: [f32; W],
+    pub(super) b1: [f32; W],
+    pub(super) b2: [f32; W],
+    pub(super) ts: [f32; W],
+    pub(super) abs_det: [f32; W],
+}
+
+impl<const W: usize> Found<W> {
+    /// Calls `visit(id(lane), hit, bound)` for each of the `lanes` (in
+    /// order) that the scalar kernel finds hit under the bound of its turn,
+    /// until `visit` returns `true` (then returns `true`); the block test
+    /// ran under `start`. Lanes on an edge, and every lane once the bound
+    /// has risen above `start` (or is NaN), take the scalar kernel
+    /// (triangle `tri(lane)`); a lane the block test accepted is kept while
+    /// `ts < bound * |det|` (the scalar kernel's own comparison).
+    #[allow(clippy::inline_always, clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(super) fn visit(
+        &self,
+        ray: &Ray,
+        mut lanes: u32,
+        start: f32,
+        bound: &mut f32,
+        tri: impl Fn(usize) -> Triangle,
+        id: impl Fn(usize) -> u32,
+        visit: &mut impl FnMut(u32, TriHit, &mut f32) -> bool,
+    ) -> bool {
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let bit = 1 << lane;
+            // NOTE: a NaN bound goes to the scalar kernel too.
+            let raised = !matches!((*bound).partial_cmp(&start), Some(Ordering::Less | Ordering::Equal));
+            let got = if self.edge & bit != 0 || raised {
+                intersect_triangle(ray, &tri(lane), *bound)
+            } else if self.hit & bit != 0 && self.ts[lane] < *bound * self.abs_det[lane] {
+                Some((self.t[lane], self.b1[lane], self.b2[lane]))
+            } else {
+                None
+            };
+            if let Some(h) = got
+                && visit(id(lane), h, bound)
+            {
+                return true;
+            }
+        }
+        false
+    }
+}
+
 /// The lanes of block `k` of a leaf of `n` triangles that only repeat its
 /// last triangle (the padding of its last block). Skipping them changes no
 /// answer: a repeat meets the ray exactly as the triangle itself did (the
 /// same bits, the same index).
 #[inline]
-fn padding(n: usize, k: usize) -> u32 {
+pub(super) fn padding(n: usize, k: usize) -> u32 {
     let real = n.saturating_sub(k * LANES).min(LANES);
     ((1u32 << LANES) - 1) & !((1u32 << real) - 1)
 }
@@ -214,13 +332,12 @@ pub(crate) fn leaf_closest(
     mut tie: u32,
 ) -> Option<(u32, TriHit)> {
     let mut best = None;
-    for_each_candidate(br, leaf, ids, blocks, |p, tri| {
-        if let Some(h) = intersect_triangle(ray, tri, tie_bound(t_max, tie))
-            && beats(h.0, p, t_max, tie)
-        {
+    for_each_hit(ray, br, leaf, ids, blocks, tie_bound(t_max, tie), |p, h, bound| {
+        if beats(h.0, p, t_max, tie) {
             t_max = h.0;
             tie = p;
             best = Some((p, h));
+            *bound = tie_bound(t_max, tie);
         }
         false
     });
@@ -230,9 +347,7 @@ pub(crate) fn leaf_closest(
 /// `true` when some triangle of the leaf is hit below `t_max`.
 #[inline]
 pub(crate) fn leaf_any(ray: &Ray, br: &BlockRay, leaf: KdNode, ids: &[u32], blocks: &[TriBlock], t_max: f32) -> bool {
-    for_each_candidate(br, leaf, ids, blocks, |_, tri| {
-        intersect_triangle(ray, tri, t_max).is_some()
-    })
+    for_each_hit(ray, br, leaf, ids, blocks, t_max, |_, _, _| true)
 }
 
 /// Calls `accept(hit)` for the leaf's triangles hit below `ray.t_max`, in
@@ -245,9 +360,7 @@ pub(crate) fn leaf_occluder_where(
     blocks: &[TriBlock],
     mut accept: impl FnMut(TriHit) -> bool,
 ) {
-    for_each_candidate(br, leaf, ids, blocks, |_, tri| {
-        intersect_triangle(ray, tri, ray.t_max).is_some_and(&mut accept)
-    });
+    for_each_hit(ray, br, leaf, ids, blocks, ray.t_max, |_, h, _| accept(h));
 }
 
 /// Tests the triangles of `leaf` against the `lanes` of `rays`, each lane
@@ -512,9 +625,19 @@ mod tests {
     use crate::testing::meshgen;
 
     /// The scalar loop the blocks replace.
-    fn scalar_closest(ray: &Ray, list: &[u32], tris: &[Triangle], mut t_max: f32) -> Option<(u32, TriHit)> {
+    fn scalar_closest(ray: &Ray, list: &[u32], tris: &[Triangle], t_max: f32) -> Option<(u32, TriHit)> {
+        scalar_closest_tied(ray, list, tris, t_max, NO_TIE)
+    }
+
+    /// The scalar loop, from a walk's best so far `(t_max, tie)`.
+    fn scalar_closest_tied(
+        ray: &Ray,
+        list: &[u32],
+        tris: &[Triangle],
+        mut t_max: f32,
+        mut tie: u32,
+    ) -> Option<(u32, TriHit)> {
         let mut best = None;
-        let mut tie = NO_TIE;
         for &p in list {
             if let Some(h) = intersect_triangle(ray, &tris[p as usize], tie_bound(t_max, tie))
                 && beats(h.0, p, t_max, tie)
@@ -607,6 +730,153 @@ mod tests {
                 "{name}: {hits} hits in {tested} leaf tests"
             );
         }
+    }
+
+    type Bits = Option<(u32, u32, u32, u32)>;
+
+    fn hit_bits(h: Option<(u32, TriHit)>) -> Bits {
+        h.map(|(p, (t, u, v))| (p, t.to_bits(), u.to_bits(), v.to_bits()))
+    }
+
+    /// The whole block test's bookkeeping where it matters most: bounds
+    /// right at a hit (a hit's tie slack then raises the bound above the
+    /// block's: those lanes go to the scalar kernel), walks that arrive
+    /// with a tie, stacks of triangles at one distance, and the occluder
+    /// visits in leaf order. Every answer against the scalar loop.
+    #[test]
+    fn block_tests_keep_the_scalar_loops_bounds_and_ties() {
+        // Coplanar stacks at z = 0 and z = 0.5 (equal distances), and a
+        // grid, all in few leaves.
+        let mut tris = meshgen::grid(6, 6);
+        for i in 0..40 {
+            let x = i as f32 / 20.0 - 1.0;
+            for z in [0.0, 0.5, 0.5 + f32::EPSILON] {
+                tris.push([Vec3::new(-1.0, -1.0, z), Vec3::new(1.0, -1.0, z), Vec3::new(x, 1.0, z)]);
+            }
+        }
+        let tree = KdTree::build_sah(tris.clone()).unwrap();
+        let leaves: Vec<KdNode> = tree
+            .nodes()
+            .iter()
+            .copied()
+            .filter(|n| n.is_leaf() && n.prim_count() > 0)
+            .collect();
+        let (mut raised, mut tied, mut occluders) = (0usize, 0usize, 0usize);
+        for ray in rays(&tris, 200, 5) {
+            let br = BlockRay::new(&ray);
+            for &leaf in &leaves {
+                let list = tree.leaf_primitives(leaf);
+                let Some((p0, (t0, _, _))) = scalar_closest(&ray, list, &tris, ray.t_max) else {
+                    continue;
+                };
+                // Bounds just above and at the nearest hit, and below it.
+                for t_max in [t0.next_up(), t0 + t0.abs() * TIE_SLACK * 0.5, t0, t0.next_down()] {
+                    for tie in [NO_TIE, p0, 0, u32::MAX - 1] {
+                        let want = scalar_closest_tied(&ray, list, &tris, t_max, tie);
+                        let got = leaf_closest(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, t_max, tie);
+                        assert_eq!(hit_bits(got), hit_bits(want), "closest at ({t_max}, {tie}) for {ray:?}");
+                        raised += usize::from(tie == NO_TIE && want.is_some() && t_max > t0);
+                        tied += usize::from(tie != NO_TIE && want.is_some());
+                    }
+                }
+                // The occluder visits: every hit below the ray's bound, in
+                // leaf order, until one is accepted.
+                for stop_at in [usize::MAX, 1, 2] {
+                    let mut want = Vec::new();
+                    for &p in list {
+                        if let Some(h) = intersect_triangle(&ray, &tris[p as usize], ray.t_max) {
+                            want.push(h.0.to_bits());
+                            if want.len() == stop_at {
+                                break;
+                            }
+                        }
+                    }
+                    let mut got = Vec::new();
+                    leaf_occluder_where(&ray, &br, leaf, &tree.prim_ids, &tree.blocks, |h| {
+                        got.push(h.0.to_bits());
+                        got.len() == stop_at
+                    });
+                    assert_eq!(got, want, "occluder visits for {ray:?}");
+                    occluders += got.len();
+                }
+            }
+        }
+        assert!(
+            raised > 100 && tied > 100 && occluders > 100,
+            "{raised} {tied} {occluders}"
+        );
+    }
+
+    /// Every call of a leaf loop's visitor, as bits: (triangle, t, b1, b2).
+    type HitVisits = Vec<(u32, u32, u32, u32)>;
+
+    /// The visits of one leaf loop as a closest-hit walk would make them
+    /// (lowering the bound by the tie rule on each hit).
+    fn visits_of(
+        each: impl FnOnce(f32, &mut dyn FnMut(u32, TriHit, &mut f32) -> bool) -> bool,
+        t_max: f32,
+    ) -> HitVisits {
+        let mut out = Vec::new();
+        let (mut best, mut tie) = (t_max, NO_TIE);
+        each(tie_bound(t_max, tie), &mut |p, h, bound| {
+            out.push((p, h.0.to_bits(), h.1.to_bits(), h.2.to_bits()));
+            if beats(h.0, p, best, tie) {
+                (best, tie) = (h.0, p);
+                *bound = tie_bound(best, tie);
+            }
+            false
+        });
+        out
+    }
+
+    /// The AVX2 loop (two blocks to a register) against the portable one
+    /// on leaves of many blocks, odd and even counts, with padding: the same
+    /// visits, hit for hit.
+    #[test]
+    fn the_avx2_pair_loop_visits_as_the_portable_one() {
+        if !crate::packet::width::avx2() {
+            eprintln!("skipped: this CPU has no AVX2");
+            return;
+        }
+        let mut tris = meshgen::bumpy_sphere(2_000, 3, 0.4);
+        tris.extend(meshgen::fan(Vec3::ZERO, 9, 1.0));
+        for i in 0..45 {
+            let x = i as f32 / 22.0 - 1.0;
+            tris.push([
+                Vec3::new(-1.0, -1.0, 0.0),
+                Vec3::new(1.0, -1.0, 0.0),
+                Vec3::new(x, 1.0, 0.0),
+            ]);
+        }
+        let tree = KdTree::build_sah(tris.clone()).unwrap();
+        let leaves: Vec<KdNode> = tree
+            .nodes()
+            .iter()
+            .copied()
+            .filter(|n| n.is_leaf() && n.prim_count() > 4)
+            .collect();
+        let odd = leaves.iter().filter(|l| l.prim_count().div_ceil(4) % 2 == 1).count();
+        assert!(odd > 5 && odd < leaves.len(), "{odd} odd of {}", leaves.len());
+        let mut visits = 0usize;
+        for ray in rays(&tris, 150, 3) {
+            let br = BlockRay::new(&ray);
+            for &leaf in &leaves {
+                for t_max in [ray.t_max, 1.2] {
+                    let (ids, blocks) = (&tree.prim_ids[..], &tree.blocks[..]);
+                    let portable = visits_of(|b, v| for_each_hit_portable(&ray, &br, leaf, ids, blocks, b, v), t_max);
+                    // SAFETY: the CPU has AVX2 (checked above).
+                    let wide = visits_of(
+                        |b, v| unsafe {
+                            super::super::pairs_avx2::for_each_hit_avx2(&ray, &br, leaf, ids, blocks, b, v)
+                        },
+                        t_max,
+                    );
+                    assert_eq!(wide, portable, "leaf of {} for {ray:?}", leaf.prim_count());
+                    visits += portable.len();
+                }
+            }
+        }
+        assert!(visits > 500, "{visits} visits");
     }
 
     /// What the leaf loop told its visitor, bit for bit: per call the

@@ -4,3 +4,5 @@
 
 pub(crate) mod blocks;
 pub(crate) mod mailbox;
+#[cfg(target_arch = "x86_64")]
+mod pairs_avx2;

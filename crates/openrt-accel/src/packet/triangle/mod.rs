@@ -22,11 +22,11 @@
 
 use wide::f32x4;
 
-use crate::geom::numeric::gamma;
 use crate::geom::ray::Ray;
 use crate::geom::tri_block::TriBlock;
 use crate::geom::triangle::Triangle;
 use crate::geom::triangle::intersect_triangle;
+use crate::geom::watertight4::Edges4;
 use crate::packet::boxes::PacketBoxes;
 use crate::packet::width::MAX_LANES;
 use crate::packet::width::by_axis;
@@ -128,24 +128,6 @@ struct Permuted {
     c: [f32x4; 3],
 }
 
-/// One chunk's translated, sheared vertices and edge functions, in the
-/// scalar kernel's order of operations.
-#[derive(Clone, Copy)]
-struct Edges {
-    za: f32x4,
-    zb: f32x4,
-    zc: f32x4,
-    ax: f32x4,
-    ay: f32x4,
-    bx: f32x4,
-    by: f32x4,
-    cx: f32x4,
-    cy: f32x4,
-    u: f32x4,
-    v: f32x4,
-    w: f32x4,
-}
-
 impl<const N: usize> PacketBlockRay<N> {
     /// The constants of the `lanes` of `rays`, `None` when their axis
     /// permutations differ (then each lane takes the scalar kernel).
@@ -233,31 +215,15 @@ impl<const N: usize> PacketBlockRay<N> {
 
     /// Chunk `k`'s edge functions: `intersect_triangle`'s first operations.
     #[inline]
-    fn edges(&self, t: &Permuted, k: usize) -> Edges {
-        let (ox, oy, oz, sx, sy) = (self.ox[k], self.oy[k], self.oz[k], self.sx[k], self.sy[k]);
-        let za = t.a[2] - oz;
-        let zb = t.b[2] - oz;
-        let zc = t.c[2] - oz;
-        let ax = t.a[0] - ox - sx * za;
-        let ay = t.a[1] - oy - sy * za;
-        let bx = t.b[0] - ox - sx * zb;
-        let by = t.b[1] - oy - sy * zb;
-        let cx = t.c[0] - ox - sx * zc;
-        let cy = t.c[1] - oy - sy * zc;
-        Edges {
-            za,
-            zb,
-            zc,
-            ax,
-            ay,
-            bx,
-            by,
-            cx,
-            cy,
-            u: cx * by - cy * bx,
-            v: ax * cy - ay * cx,
-            w: bx * ay - by * ax,
-        }
+    fn edges(&self, t: &Permuted, k: usize) -> Edges4 {
+        Edges4::new(
+            &t.a,
+            &t.b,
+            &t.c,
+            &[self.ox[k], self.oy[k], self.oz[k]],
+            self.sx[k],
+            self.sy[k],
+        )
     }
 
     /// [`PacketBlockRay::intersect_block`] of a triangle given whole (the
@@ -288,7 +254,6 @@ impl<const N: usize> PacketBlockRay<N> {
     #[allow(clippy::inline_always)]
     #[inline(always)]
     fn intersect_permuted(&self, tr: &Permuted, lanes: u32, t_max: &[f32; N]) -> LaneHits {
-        let zero = f32x4::ZERO;
         let mut out = LaneHits::none();
         for k in 0..N / CHUNK {
             let chunk_lanes = (lanes >> (k * CHUNK)) & CHUNK_MASK;
@@ -296,74 +261,23 @@ impl<const N: usize> PacketBlockRay<N> {
                 continue;
             }
             let e = self.edges(tr, k);
-            let (u, v, w) = (e.u, e.v, e.w);
-            let mixed = mixed_signs(&e);
+            let mixed = e.mixed();
             // PERF: the pre-test: most chunks stop here (certain misses).
             if (!mixed).to_bitmask() & chunk_lanes == 0 {
                 continue;
             }
-            let on_edge = u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero);
-            let det = u + v + w;
-            // `1.0f32.copysign(det)`.
-            let sgn = f32x4::ONE | (det & f32x4::splat(-0.0));
-            let outside = (u * sgn).simd_lt(zero) | (v * sgn).simd_lt(zero) | (w * sgn).simd_lt(zero);
-            let sz = self.sz[k];
-            let (az, bz, cz) = (sz * e.za, sz * e.zb, sz * e.zc);
-            let t_scaled = u * az + v * bz + w * cz;
-            let abs_det = det.abs();
-            let ts = t_scaled * sgn;
             let hi = f32x4::new(std::array::from_fn(|i| t_max[k * CHUNK + i]));
-            let within = ts.simd_gt(self.t_min[k] * abs_det) & ts.simd_lt(hi * abs_det);
-            let rcp_det = f32x4::ONE / det;
-            let t = t_scaled * rcp_det;
-            // PERF: `fast_max` (one `maxps`) where `f32::max` would need
-            // NaN handling: a NaN in any of these inputs makes `det` or
-            // `t_scaled` NaN, and the lane is rejected whatever the bound.
-            let max3 = |p: f32x4, q: f32x4, r: f32x4| p.abs().fast_max(q.abs()).fast_max(r.abs());
-            let max_zt = max3(az, bz, cz);
-            let max_zu = max3(e.za, e.zb, e.zc);
-            let delta_z = f32x4::splat(gamma(3)) * max_zt;
-            let max_xt = max3(e.ax, e.bx, e.cx);
-            let max_yt = max3(e.ay, e.by, e.cy);
-            let delta_x = f32x4::splat(gamma(5)) * (max_xt + max_zu);
-            let delta_y = f32x4::splat(gamma(5)) * (max_yt + max_zu);
-            let delta_e =
-                f32x4::splat(2.0) * (f32x4::splat(gamma(2)) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-            let max_e = max3(u, v, w);
-            let delta_t = f32x4::splat(3.0)
-                * (f32x4::splat(gamma(3)) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
-                * rcp_det.abs();
-            // The scalar kernel's rejections, in its terms: mixed signs,
-            // `det` zero or NaN, outside, beyond the interval, `t` within
-            // its error of zero or not finite (`!(t <= delta_t)`: a NaN
-            // `delta_t` rejects nothing, as there).
-            let rejected = mixed
-                | on_edge
-                | det.simd_eq(zero)
-                | det.is_nan()
-                | outside
-                | !within
-                | t.simd_le(delta_t)
-                | !t.is_finite();
-            out.hit |= (!rejected).to_bitmask() << (k * CHUNK);
-            out.edge |= (on_edge & !mixed).to_bitmask() << (k * CHUNK);
-            out.t[k] = t;
-            out.b1[k] = v * rcp_det;
-            out.b2[k] = w * rcp_det;
+            let d = e.decide(mixed, self.sz[k], self.t_min[k], hi);
+            out.hit |= d.hit << (k * CHUNK);
+            out.edge |= d.edge << (k * CHUNK);
+            out.t[k] = d.t;
+            out.b1[k] = d.b1;
+            out.b2[k] = d.b2;
         }
         out.hit &= lanes;
         out.edge &= lanes;
         out
     }
-}
-
-/// Lanes whose edge functions have mixed signs: certain misses.
-#[inline]
-fn mixed_signs(e: &Edges) -> f32x4 {
-    let zero = f32x4::ZERO;
-    let neg = e.u.simd_lt(zero) | e.v.simd_lt(zero) | e.w.simd_lt(zero);
-    let pos = e.u.simd_gt(zero) | e.v.simd_gt(zero) | e.w.simd_gt(zero);
-    neg & pos
 }
 
 #[cfg(test)]
