@@ -186,10 +186,7 @@ fn for_each_hit_portable(
     mut bound: f32,
     mut visit: impl FnMut(u32, TriHit, &mut f32) -> bool,
 ) -> bool {
-    let off = leaf.prim_offset() as usize;
-    let first = off / LANES;
-    let n = leaf.prim_count() as usize;
-    let count = n.div_ceil(LANES);
+    let (off, first, n, count) = leaf_range(leaf);
     for (c, chunk) in blocks[first..first + count].chunks(CHUNK).enumerate() {
         let mut m = 0u64;
         for (k, b) in chunk.iter().enumerate() {
@@ -219,6 +216,15 @@ fn for_each_hit_portable(
         }
     }
     false
+}
+
+/// A leaf's place in the blocks: `(offset of its first index, its first
+/// block, triangles, blocks)`.
+#[inline]
+pub(super) fn leaf_range(leaf: KdNode) -> (usize, usize, usize, usize) {
+    let off = leaf.prim_offset() as usize;
+    let n = leaf.prim_count() as usize;
+    (off, off / LANES, n, n.div_ceil(LANES))
 }
 
 /// A block test's answers for `W` lanes (one block, or two with AVX2).
@@ -471,10 +477,7 @@ fn leaf_packet_with<const N: usize, const WIDE: bool>(
     mut tested: Option<&mut TriMailbox>,
     mut visit: impl FnMut(&LaneHits, u32, &mut [f32; N]) -> u32,
 ) -> u32 {
-    let off = leaf.prim_offset() as usize;
-    let first = off / LANES;
-    let n = leaf.prim_count() as usize;
-    let count = n.div_ceil(LANES);
+    let (off, first, n, count) = leaf_range(leaf);
     let mut live = lanes;
     // The kernel's bounds: each lane's `tie_bound` in a closest-hit walk.
     let mut bound = *closest;
@@ -624,6 +627,15 @@ mod tests {
     use crate::kd::tree::KdTree;
     use crate::testing::meshgen;
 
+    /// The leaves of `tree` with more than `n` triangles.
+    fn leaves_over(tree: &KdTree, n: u32) -> Vec<KdNode> {
+        tree.nodes()
+            .iter()
+            .copied()
+            .filter(|l| l.is_leaf() && l.prim_count() > n)
+            .collect()
+    }
+
     /// The scalar loop the blocks replace.
     fn scalar_closest(ray: &Ray, list: &[u32], tris: &[Triangle], t_max: f32) -> Option<(u32, TriHit)> {
         scalar_closest_tied(ray, list, tris, t_max, NO_TIE)
@@ -693,12 +705,7 @@ mod tests {
             ),
         ] {
             let tree = KdTree::build_sah(tris.clone()).unwrap();
-            let leaves: Vec<KdNode> = tree
-                .nodes()
-                .iter()
-                .copied()
-                .filter(|n| n.is_leaf() && n.prim_count() > 0)
-                .collect();
+            let leaves = leaves_over(&tree, 0);
             if name == "stack" {
                 assert!(
                     leaves.iter().any(|n| n.prim_count() as usize > 64),
@@ -755,12 +762,7 @@ mod tests {
             }
         }
         let tree = KdTree::build_sah(tris.clone()).unwrap();
-        let leaves: Vec<KdNode> = tree
-            .nodes()
-            .iter()
-            .copied()
-            .filter(|n| n.is_leaf() && n.prim_count() > 0)
-            .collect();
+        let leaves = leaves_over(&tree, 0);
         let (mut raised, mut tied, mut occluders) = (0usize, 0usize, 0usize);
         for ray in rays(&tris, 200, 5) {
             let br = BlockRay::new(&ray);
@@ -849,12 +851,7 @@ mod tests {
             ]);
         }
         let tree = KdTree::build_sah(tris.clone()).unwrap();
-        let leaves: Vec<KdNode> = tree
-            .nodes()
-            .iter()
-            .copied()
-            .filter(|n| n.is_leaf() && n.prim_count() > 4)
-            .collect();
+        let leaves = leaves_over(&tree, 4);
         let odd = leaves.iter().filter(|l| l.prim_count().div_ceil(4) % 2 == 1).count();
         assert!(odd > 5 && odd < leaves.len(), "{odd} odd of {}", leaves.len());
         let mut visits = 0usize;
@@ -932,12 +929,7 @@ mod tests {
         }
         let tris = meshgen::bumpy_sphere(3_000, 5, 0.5);
         let tree = KdTree::build_sah(tris.clone()).unwrap();
-        let leaves: Vec<KdNode> = tree
-            .nodes()
-            .iter()
-            .copied()
-            .filter(|n| n.is_leaf() && n.prim_count() > 0)
-            .collect();
+        let leaves = leaves_over(&tree, 0);
         // Camera packets of 16 and 8 lanes through the sphere, and packets
         // aimed at its vertices (exact edge lanes).
         let cam = meshgen::camera_rays(Vec3::new(0.3, 0.2, 3.0), Vec3::ZERO, 32, 32, 50.0);

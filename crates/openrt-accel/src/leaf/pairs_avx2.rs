@@ -8,7 +8,7 @@
 
 use core::arch::x86_64::{__m256, _mm256_loadu2_m128, _mm256_movemask_ps, _mm256_set1_ps, _mm256_storeu_ps};
 
-use super::blocks::{BlockRay, Found, padding};
+use super::blocks::{BlockRay, Found, leaf_range, padding};
 use crate::geom::ray::Ray;
 use crate::geom::tri_block::{LANES, TriBlock};
 use crate::geom::triangle::TriHit;
@@ -45,10 +45,7 @@ pub(super) unsafe fn for_each_hit_avx2(
     mut bound: f32,
     mut visit: impl FnMut(u32, TriHit, &mut f32) -> bool,
 ) -> bool {
-    let off = leaf.prim_offset() as usize;
-    let first = off / LANES;
-    let n = leaf.prim_count() as usize;
-    let count = n.div_ceil(LANES);
+    let (off, first, n, count) = leaf_range(leaf);
     let leaf_blocks = &blocks[first..first + count];
     let splat = |v: wide::f32x4| _mm256_set1_ps(v.as_array()[0]);
     let o = [splat(br.o[0]), splat(br.o[1]), splat(br.o[2])];
