@@ -145,15 +145,13 @@ const CHUNK: usize = 64 / LANES;
 /// ([`Edges4`]), and only the lanes exactly on an edge go to the scalar
 /// kernel (Embree tests a ray against several triangles the same way).
 ///
-/// PERF: the masks of up to `CHUNK` blocks are gathered before any of them
-/// is looked at, so that the pre-tests of a leaf run without a branch on
-/// their results between them. A lane the block test accepted under the
-/// bound of its block's turn is kept under a lower bound only if
-/// `ts < bound * |det|` still holds (the scalar kernel's own comparison); a
-/// bound raised since (a tie's slack) sends the block's candidates to the
-/// scalar kernel instead. Against the pre-test and a scalar test per
-/// candidate (1.8-2.5 per primary ray of which three quarters hit):
-/// see docs/PERFORMANCE.md.
+/// A lane the block test accepted under the bound of its block's turn is
+/// kept under a lower bound only if `ts < bound * |det|` still holds (the
+/// scalar kernel's own comparison); a bound raised since (a tie's slack)
+/// sends the block's candidates to the scalar kernel instead (`Found::visit`).
+/// Leaves of two blocks or more take the AVX2 loop on CPUs that have it.
+/// Against the pre-test and a scalar test per candidate (1.8-2.5 per primary
+/// ray, three quarters of them hits): see docs/PERFORMANCE.md.
 #[inline]
 fn for_each_hit(
     ray: &Ray,
@@ -176,6 +174,12 @@ fn for_each_hit(
 
 /// [`for_each_hit`] a block at a time, four triangles to an SSE register
 /// (every CPU; the AVX2 loop's twin).
+///
+/// PERF: the masks of up to `CHUNK` blocks are gathered before any of them
+/// is looked at, so that the pre-tests of a leaf run without a branch on
+/// their results between them; a candidate's triangle is read back from its
+/// block (bit-identical to the triangle array's copy, checked by
+/// `validate`), not from the triangle array, one cache miss fewer.
 #[inline]
 fn for_each_hit_portable(
     ray: &Ray,

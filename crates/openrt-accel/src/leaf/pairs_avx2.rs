@@ -51,12 +51,11 @@ pub(super) unsafe fn for_each_hit_avx2(
     let o = [splat(br.o[0]), splat(br.o[1]), splat(br.o[2])];
     let (sx, sy, sz, t_min) = (splat(br.sx), splat(br.sy), splat(br.sz), splat(br.t_min));
     let [kx, ky, kz] = [br.kx, br.ky, br.kz];
-    // PERF: one pass per pair, the edge functions computed once and the
-    // rest of the test run at once where a lane is a candidate (the
-    // four-lane loop's gathering of masks first, with the edge functions
-    // recomputed, called them out of line: closures and helpers do not
-    // take the AVX2 target feature inline, and robots shadow rays took
-    // 1.4x the four-lane loop's time).
+    // PERF: one pass per pair, its edge functions computed once. Gathering
+    // the masks first, as the four-lane loop does, needed the edge functions
+    // from a helper, which was called out of line with its registers
+    // spilled (helpers and closures are not inlined across the AVX2 target
+    // feature): robots shadow rays took 1.4x the four-lane loop's time.
     for p in (0..count).step_by(PAIR) {
         let q = (p + 1).min(count - 1);
         let (lo, hi) = (&leaf_blocks[p], &leaf_blocks[q]);
