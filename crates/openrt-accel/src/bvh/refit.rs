@@ -10,7 +10,9 @@
 
 use std::time::Instant;
 
+use glam::{Vec3, Vec4};
 use rayon::prelude::*;
+use wide::f32x4;
 
 use super::node::{BVH_WIDTH, BvhNode, EMPTY_SLOT, LEAF_BIT};
 use super::{Bvh, LANES, TriBlock};
@@ -22,6 +24,28 @@ use crate::kd::fast_build::parallel_for;
 
 /// Nodes or blocks per parallel task.
 const CHUNK: usize = 1024;
+
+/// The box of a leaf's blocks (padding lanes repeat a triangle of the
+/// leaf): their lanes' boxes merged lane by lane, then across the lanes.
+/// The triangles are valid (finite), so `fast_min` and `fast_max` (no NaN
+/// handling) answer as `min` and `max`.
+fn blocks_bounds(blocks: &[TriBlock]) -> Aabb {
+    let inf = f32x4::splat(f32::INFINITY);
+    let (mut lo, mut hi) = ([inf; 3], [-inf; 3]);
+    for b in blocks {
+        let (l, h) = b.lane_bounds();
+        for k in 0..3 {
+            lo[k] = lo[k].fast_min(l[k]);
+            hi[k] = hi[k].fast_max(h[k]);
+        }
+    }
+    let least = |v: f32x4| Vec4::from_array(v.to_array()).min_element();
+    let most = |v: f32x4| Vec4::from_array(v.to_array()).max_element();
+    Aabb {
+        min: Vec3::new(least(lo[0]), least(lo[1]), least(lo[2])),
+        max: Vec3::new(most(hi[0]), most(hi[1]), most(hi[2])),
+    }
+}
 
 impl Bvh {
     /// The BVH of `tris` (the triangles of `prev`'s object after they moved,
@@ -36,36 +60,56 @@ impl Bvh {
         // waits (museum1k, 1k triangles: 0.103 ms a refit with, 0.023
         // without; bench rebuild table).
         let parallel = parallel_for(tris.len());
-        let same = |(a, b): (&Triangle, &Triangle)| is_valid_triangle(a) == is_valid_triangle(b);
-        // PERF: when the last tree dropped nothing (triangles from the API,
-        // which drops invalid ones), only the new triangles are tested:
-        // half the validity tests.
-        let same_validity = tris.len() == prev.tris.len()
-            && match (prev.stats.dropped == 0, parallel) {
-                (true, true) => tris.par_iter().all(is_valid_triangle),
-                (true, false) => tris.iter().all(is_valid_triangle),
-                (false, true) => tris.par_iter().zip(prev.tris.par_iter()).all(same),
-                (false, false) => tris.iter().zip(&prev.tris).all(same),
-            };
-        if !same_validity {
-            let mut fresh = Self::build(tris)?;
-            fresh.stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
-            return Ok(fresh);
-        }
         let ids = &prev.prim_ids;
-        // Each node copied with its leaf boxes recomputed (in parallel; an
-        // indexed iterator, so `collect` writes the nodes in place).
+        // When the last tree dropped nothing (triangles from the API, which
+        // drops invalid ones), its blocks hold every triangle: they are
+        // packed first and tested four at a time. Otherwise each triangle's
+        // validity is compared with its old one first.
+        let all_kept = tris.len() == prev.tris.len() && prev.stats.dropped == 0;
+        if !all_kept {
+            let same = |(a, b): (&Triangle, &Triangle)| is_valid_triangle(a) == is_valid_triangle(b);
+            let same_validity = tris.len() == prev.tris.len()
+                && if parallel {
+                    tris.par_iter().zip(prev.tris.par_iter()).all(same)
+                } else {
+                    tris.iter().zip(&prev.tris).all(same)
+                };
+            if !same_validity {
+                return Self::afresh(tris, start);
+            }
+        }
+        // NOTE: an indexed parallel iterator, so `collect` writes each block
+        // in place (chunks of blocks collected and then concatenated were
+        // copied twice).
+        let blocks: Vec<TriBlock> = if parallel {
+            ids.par_chunks(LANES)
+                .with_min_len(CHUNK)
+                .map(|b| TriBlock::pack(b, &tris))
+                .collect()
+        } else {
+            ids.chunks(LANES).map(|b| TriBlock::pack(b, &tris)).collect()
+        };
+        if all_kept {
+            let valid = if parallel {
+                blocks.par_iter().with_min_len(CHUNK).all(TriBlock::all_valid)
+            } else {
+                blocks.iter().all(TriBlock::all_valid)
+            };
+            if !valid {
+                return Self::afresh(tris, start);
+            }
+        }
+        // Each node copied with its leaf boxes recomputed from the leaves'
+        // blocks (in parallel; an indexed iterator, so `collect` writes the
+        // nodes in place).
         let leaf_boxes = |node: &BvhNode| {
             let mut node = *node;
             for i in 0..BVH_WIDTH {
                 let c = node.child[i];
                 if c != EMPTY_SLOT && c & LEAF_BIT != 0 {
-                    let off = (c & !LEAF_BIT) as usize;
-                    let n = node.count[i] as usize;
-                    let b = ids[off..off + n]
-                        .iter()
-                        .fold(Aabb::EMPTY, |b, &p| b.union(Aabb::from_points(&tris[p as usize])));
-                    node.set_box(i, &b);
+                    let first = (c & !LEAF_BIT) as usize / LANES;
+                    let n = (node.count[i] as usize).div_ceil(LANES);
+                    node.set_box(i, &blocks_bounds(&blocks[first..first + n]));
                 }
             }
             node
@@ -85,17 +129,6 @@ impl Bvh {
                 }
             }
         }
-        // NOTE: an indexed parallel iterator, so `collect` writes each block
-        // in place (chunks of blocks collected and then concatenated were
-        // copied twice).
-        let blocks: Vec<TriBlock> = if parallel {
-            ids.par_chunks(LANES)
-                .with_min_len(CHUNK)
-                .map(|b| TriBlock::pack(b, &tris))
-                .collect()
-        } else {
-            ids.chunks(LANES).map(|b| TriBlock::pack(b, &tris)).collect()
-        };
         let bounds = nodes.first().map_or(Aabb::EMPTY, BvhNode::bounds);
         let mut bvh = Self {
             nodes,
@@ -108,12 +141,17 @@ impl Bvh {
         };
         bvh.stats.sah_cost = bvh.sah_cost();
         if bvh.stats.sah_cost > prev.stats.base_cost * cost_limit {
-            let mut fresh = Self::build(bvh.tris)?;
-            fresh.stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
-            return Ok(fresh);
+            return Self::afresh(bvh.tris, start);
         }
         bvh.stats.refitted = true;
         bvh.finish(start);
         Ok(bvh)
+    }
+
+    /// The refit's fallback: `tris` built afresh, timed from `start`.
+    fn afresh(tris: Vec<Triangle>, start: Instant) -> Result<Self, AccelError> {
+        let mut fresh = Self::build(tris)?;
+        fresh.stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(fresh)
     }
 }

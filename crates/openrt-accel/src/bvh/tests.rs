@@ -294,6 +294,21 @@ fn refits_in_parallel_and_alone_agree() {
     assert_eq!(bits(&alone), bits(&pooled));
     assert_eq!(alone.blocks.len(), pooled.blocks.len());
     pooled.validate().unwrap();
+    // Leaf boxes come from the packed blocks, lane by lane: exactly the
+    // union of the leaf's triangles' boxes.
+    for b in [&alone, &pooled] {
+        for node in b.nodes() {
+            for i in 0..BVH_WIDTH {
+                let slot = node.slot(i);
+                if matches!(slot, BvhSlot::Leaf { .. }) {
+                    let want = b.leaf_primitives(slot).iter().fold(Aabb::EMPTY, |a, &p| {
+                        a.union(Aabb::from_points(&b.triangles()[p as usize]))
+                    });
+                    assert_eq!(node.child_box(i), want);
+                }
+            }
+        }
+    }
 }
 
 #[test]

@@ -38,6 +38,24 @@ impl TriBlock {
         Self { v }
     }
 
+    /// Whether every lane's triangle is valid ([`crate::geom::triangle::is_valid_triangle`]).
+    #[inline]
+    pub(crate) fn all_valid(&self) -> bool {
+        crate::geom::triangle::valid_lanes(&self.v) == (1 << LANES) - 1
+    }
+
+    /// The lanes' boxes, lane by lane: `(lo, hi)` by axis, for finite
+    /// coordinates exactly [`crate::geom::aabb::Aabb::from_points`] of each
+    /// lane's triangle (`min` and `max` round nothing; NaN is not handled).
+    #[inline]
+    pub(crate) fn lane_bounds(&self) -> ([f32x4; 3], [f32x4; 3]) {
+        let [a, b, c] = &self.v;
+        (
+            std::array::from_fn(|k| a[k].fast_min(b[k]).fast_min(c[k])),
+            std::array::from_fn(|k| a[k].fast_max(b[k]).fast_max(c[k])),
+        )
+    }
+
     /// Coordinate `axis` of vertex `vert` of the four triangles.
     #[inline]
     pub(crate) fn coord(&self, vert: usize, axis: usize) -> f32x4 {
