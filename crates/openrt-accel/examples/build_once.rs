@@ -1,19 +1,41 @@
-//! Builds SAH trees (for profiling): `build_once [N] [binned_above|exact|bvh|refit]`;
+//! Builds SAH trees (for profiling): `build_once [N] [binned_above|exact|bvh|refit|bvhrefit [THREADS]]`;
 //! without a mode, the kd-tree's default parameters; `bvh` builds BVHs
 //! (one thread) and prints the median of seven builds; `refit` refits a
 //! fast tree to 200 frames of a smooth motion (one thread) and prints the
-//! median refit time.
+//! median refit time; `bvhrefit` refits a BVH to the same motion on a pool
+//! of THREADS (default 1).
 fn main() {
     let n: usize = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(100_000);
     let mode = std::env::args().nth(2).unwrap_or_else(|| "default".into());
+    let tris = openrt_accel::meshgen::bumpy_sphere(n, 42, 0.5);
+    // A wave along x and a drift along z, as the museum's pieces move.
+    let moved = |time: f32| -> Vec<openrt_accel::Triangle> {
+        tris.iter()
+            .map(|t| t.map(|v| v + glam::Vec3::new(0.05 * (3.0 * v.y + time).sin(), 0.0, 0.02 * time)))
+            .collect()
+    };
+    if mode == "bvhrefit" {
+        let threads: usize = std::env::args().nth(3).and_then(|s| s.parse().ok()).unwrap_or(1);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let mut bvh = openrt_accel::Bvh::build(moved(0.0)).unwrap();
+        let mut ms = Vec::new();
+        let mut refitted = 0;
+        for f in 1..=100 {
+            let next = moved(f as f32 * 0.01);
+            bvh = pool
+                .install(|| openrt_accel::Bvh::refit(&bvh, next, openrt_accel::BVH_REFIT_COST_LIMIT))
+                .unwrap();
+            ms.push(bvh.stats().build_ms);
+            refitted += usize::from(bvh.stats().refitted);
+        }
+        ms.sort_by(f64::total_cmp);
+        println!(
+            "bvh refit, {threads} threads: {:.3} ms median, {refitted} / 100 refitted",
+            ms[ms.len() / 2]
+        );
+        return;
+    }
     if mode == "refit" {
-        let tris = openrt_accel::meshgen::bumpy_sphere(n, 42, 0.5);
-        // A wave along x and a drift along z, as the museum's pieces move.
-        let moved = |time: f32| -> Vec<openrt_accel::Triangle> {
-            tris.iter()
-                .map(|t| t.map(|v| v + glam::Vec3::new(0.05 * (3.0 * v.y + time).sin(), 0.0, 0.02 * time)))
-                .collect()
-        };
         let params = openrt_accel::FastParams::default();
         let mut tree = openrt_accel::KdTree::build_fast_with(moved(0.0), &params).unwrap();
         let mut ms = Vec::new();

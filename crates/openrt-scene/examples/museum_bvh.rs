@@ -89,7 +89,7 @@ fn kd(path: &std::path::Path, threads: usize, passes: usize, refit: bool) {
     let params = FastParams::default();
     let mut least = f64::INFINITY;
     for _ in 0..passes {
-        let (mut ms, mut only, mut refitted) = (Vec::new(), Vec::new(), 0);
+        let (mut ms, mut only, mut refitted, mut cost) = (Vec::new(), Vec::new(), 0, 0.0);
         let mut prev: Option<KdTree> = None;
         for tris in &frames {
             let owned = tris.clone();
@@ -102,6 +102,7 @@ fn kd(path: &std::path::Path, threads: usize, passes: usize, refit: bool) {
                 .unwrap();
             let t = t0.elapsed().as_secs_f64() * 1e3;
             ms.push(t);
+            cost += tree.sah_cost();
             if tree.stats().refitted {
                 only.push(t);
                 refitted += 1;
@@ -114,10 +115,11 @@ fn kd(path: &std::path::Path, threads: usize, passes: usize, refit: bool) {
         let o = only.get(only.len() / 2).copied().unwrap_or(f64::NAN);
         least = least.min(ms[k / 2]);
         println!(
-            "kd: median {:.3} ms (q25 {:.3}, q75 {:.3}), {refitted} refitted (median {o:.3})",
+            "kd: median {:.3} ms (q25 {:.3}, q75 {:.3}), {refitted} refitted (median {o:.3} ms), mean SAH cost {:.3}",
             ms[k / 2],
             ms[k / 4],
-            ms[3 * k / 4]
+            ms[3 * k / 4],
+            cost / k as f64
         );
     }
     println!("least median {least:.3} ms");
