@@ -107,7 +107,10 @@ impl Bvh {
             for i in 0..BVH_WIDTH {
                 let c = node.child[i];
                 if c != EMPTY_SLOT && c & LEAF_BIT != 0 {
-                    let first = (c & !LEAF_BIT) as usize / LANES;
+                    // Leaves begin on a block (`pack` pads each one).
+                    let off = (c & !LEAF_BIT) as usize;
+                    debug_assert_eq!(off % LANES, 0);
+                    let first = off / LANES;
                     let n = (node.count[i] as usize).div_ceil(LANES);
                     node.set_box(i, &blocks_bounds(&blocks[first..first + n]));
                 }

@@ -173,6 +173,13 @@ fn not_flat_f64(tri: &Triangle) -> bool {
     n != glam::DVec3::ZERO
 }
 
+/// The relative error bound [`clearly_not_flat`] allows a normal's component.
+const FLAT_BOUND: f32 = 8.0 * f32::EPSILON;
+
+/// Below this a normal's products may be subnormal, where relative bounds
+/// fail: [`clearly_not_flat`] leaves such triangles to f64.
+const FLAT_SMALLEST: f32 = 1e-30;
+
 /// `true` only when a component of the f32 normal exceeds its rounding
 /// error bound, so that the exact normal (and the f64 one of
 /// [`not_flat_f64`], whose error is 2^29 times smaller) is not zero either.
@@ -182,14 +189,11 @@ fn not_flat_f64(tri: &Triangle) -> bool {
 /// that. Products near underflow or overflow are left to f64.
 #[inline]
 fn clearly_not_flat(tri: &Triangle) -> bool {
-    const BOUND: f32 = 8.0 * f32::EPSILON;
-    // Below this the products may be subnormal, where relative bounds fail.
-    const SMALLEST: f32 = 1e-30;
     use glam::Vec3Swizzles;
     let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
     let n = e1.cross(e2);
     let mag = (e1.yzx() * e2.zxy()).abs() + (e1.zxy() * e2.yzx()).abs();
-    let certain = n.abs().cmpgt(mag * BOUND) & mag.cmpge(Vec3::splat(SMALLEST)) & mag.is_finite_mask();
+    let certain = n.abs().cmpgt(mag * FLAT_BOUND) & mag.cmpge(Vec3::splat(FLAT_SMALLEST)) & mag.is_finite_mask();
     certain.any()
 }
 
@@ -218,8 +222,6 @@ pub(crate) fn valid_lanes(v: &[[f32x4; 3]; 3]) -> u32 {
 /// masks.
 #[inline]
 fn decided_lanes(v: &[[f32x4; 3]; 3]) -> (u32, u32) {
-    const BOUND: f32 = 8.0 * f32::EPSILON;
-    const SMALLEST: f32 = 1e-30;
     let max = f32x4::splat(f32::MAX);
     let mut finite = f32x4::splat(f32::from_bits(u32::MAX));
     for c in v.iter().flatten() {
@@ -233,8 +235,9 @@ fn decided_lanes(v: &[[f32x4; 3]; 3]) -> (u32, u32) {
         let (b, c) = ((a + 1) % 3, (a + 2) % 3);
         let (p, q) = (e1[b] * e2[c], e1[c] * e2[b]);
         let mag = p.abs() + q.abs();
-        certain |=
-            (p - q).abs().simd_gt(mag * f32x4::splat(BOUND)) & mag.simd_ge(f32x4::splat(SMALLEST)) & mag.simd_le(max);
+        certain |= (p - q).abs().simd_gt(mag * f32x4::splat(FLAT_BOUND))
+            & mag.simd_ge(f32x4::splat(FLAT_SMALLEST))
+            & mag.simd_le(max);
     }
     (finite.to_bitmask(), certain.to_bitmask())
 }
