@@ -246,17 +246,21 @@ fn decided_lanes(v: &[[f32x4; 3]; 3]) -> (u32, u32) {
 mod tests {
     use super::*;
 
-    /// The four-lane validity test answers as the scalar one, lane by lane,
-    /// on general, flat, sliver, huge, tiny and non-finite triangles.
-    #[test]
-    fn valid_lanes_matches_the_scalar_test() {
-        let mut s = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = || {
+    /// Uniform numbers in `[0, 1)` from a xorshift generator seeded `s`.
+    fn uniform(mut s: u64) -> impl FnMut() -> f64 {
+        move || {
             s ^= s << 13;
             s ^= s >> 7;
             s ^= s << 17;
             (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        }
+    }
+
+    /// The four-lane validity test answers as the scalar one, lane by lane,
+    /// on general, flat, sliver, huge, tiny and non-finite triangles.
+    #[test]
+    fn valid_lanes_matches_the_scalar_test() {
+        let mut next = uniform(0x2545_f491_4f6c_dd1d);
         let mut tris = Vec::new();
         for i in 0..40_000 {
             let scale = 10f64.powi((i % 80) - 40) as f32;
@@ -300,13 +304,7 @@ mod tests {
     /// and overflowing products.
     #[test]
     fn validity_fast_path_agrees_with_f64() {
-        let mut s = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(0x9e37_79b9_7f4a_7c15);
         let (mut flat, mut general, mut fast) = (0, 0, 0);
         for i in 0..200_000 {
             let exponent = (i % 80) - 40;
