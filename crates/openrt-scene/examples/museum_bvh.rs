@@ -2,9 +2,10 @@
 //! profiling and side-by-side timing): the triangles of every other frame
 //! are gathered first, then each pass builds them all afresh (`fresh`) or
 //! refits frame to frame as a commit does (`refit`) on a pool of THREADS;
-//! prints each pass's median and the least median over the passes.
+//! `kd` and `kdrefit` do the same with the kd-tree's fast builder and its
+//! refit. Prints each pass's median and the least median over the passes.
 //!
-//! `cargo run --release -p openrt-scene --example museum_bvh -- scenes/museum16k.ron THREADS PASSES fresh|refit`
+//! `cargo run --release -p openrt-scene --example museum_bvh -- scenes/museum16k.ron THREADS PASSES fresh|refit|kd|kdrefit`
 use openrt_accel::{BspBuilder, BuilderKind, Bvh};
 use openrt_scene::ScenePlayer;
 use std::time::Instant;
