@@ -237,7 +237,7 @@ impl InstanceBvh {
         if live == 0 {
             return finished;
         }
-        let lr = LaneRays::new(rays);
+        let lr = LaneRays::from_laid(boxes);
         let cull = Cull::of(frustum, Some(boxes), live);
         finished
             | walk_packet(&self.nodes, &lr, live, closest, &cull, |off, count, active, closest| {

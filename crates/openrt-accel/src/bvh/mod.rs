@@ -468,7 +468,7 @@ impl Bvh {
         });
         let frustum = prep.frustum();
         let cull = prep.cull(live);
-        let lr = packet::LaneRays::new(rays);
+        let lr = laid_out.map_or_else(|| packet::LaneRays::new(rays), packet::LaneRays::from_laid);
         let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let mut brs: Option<[BlockRay; N]> = None;
         let mut ties = [NO_TIE; N];
@@ -559,7 +559,7 @@ impl Bvh {
         });
         let frustum = prep.frustum();
         let cull = prep.cull(live);
-        let lr = packet::LaneRays::new(rays);
+        let lr = laid_out.map_or_else(|| packet::LaneRays::new(rays), packet::LaneRays::from_laid);
         let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let mut brs: Option<[BlockRay; N]> = None;
         blocked |= packet::walk_packet(

@@ -72,6 +72,29 @@ impl LaneRays {
         }
     }
 
+    /// [`LaneRays::new`] from the packet's lanes already laid out (the same
+    /// values: `PacketBoxes` holds the rays' origins, reciprocals and near
+    /// bounds lane by lane), four lanes to a load instead of a gather from
+    /// each ray.
+    pub(crate) fn from_laid<const N: usize>(b: &PacketBoxes<N>) -> Self {
+        let groups = N / 4;
+        let lanes4 = |v: &[f32; N]| -> [f32x4; MAX_GROUPS] {
+            std::array::from_fn(|g| {
+                if g < groups {
+                    f32x4::new([v[4 * g], v[4 * g + 1], v[4 * g + 2], v[4 * g + 3]])
+                } else {
+                    f32x4::ZERO
+                }
+            })
+        };
+        Self {
+            o: [lanes4(&b.o[0]), lanes4(&b.o[1]), lanes4(&b.o[2])],
+            inv: [lanes4(&b.inv[0]), lanes4(&b.inv[1]), lanes4(&b.inv[2])],
+            t_min: lanes4(&b.t_min),
+            groups,
+        }
+    }
+
     /// The single-ray node test of child `i` of `node` for the four lanes
     /// of group `g`, each up to its `closest`: the lanes that may meet the
     /// box, and their lowered entry distances.
@@ -266,8 +289,17 @@ where
                 }
                 if n > 0 {
                     // Nearest first lane's entry last on the stack.
-                    let by_near = |k: &(u32, f32)| k.1;
-                    kids[..n].sort_unstable_by(|a, b| by_near(b).total_cmp(&by_near(a)));
+                    // PERF: insertion in place (at most four), not a call
+                    // of the slice sort.
+                    for j in 1..n {
+                        let k = kids[j];
+                        let mut m = j;
+                        while m > 0 && kids[m - 1].1.total_cmp(&k.1).is_lt() {
+                            kids[m] = kids[m - 1];
+                            m -= 1;
+                        }
+                        kids[m] = k;
+                    }
                     let entry = |k: (u32, f32)| {
                         let i = (k.0 >> 24) as usize;
                         Entry {

@@ -213,7 +213,9 @@ fn the_node_test_equals_its_scalar_twin_bit_for_bit() {
 }
 
 /// The first-active-lane test of all four children at once gives, child by
-/// child, the lane's bits of the group test and of the single-ray test.
+/// child, the lane's bits of the group test and of the single-ray test; the
+/// lanes read from the packet's layout (`LaneRays::from_laid`) give the
+/// same bits.
 #[test]
 fn the_lane_test_of_four_children_equals_the_group_and_single_ray_tests() {
     let mut rng = SmallRng::seed_from_u64(17);
@@ -244,16 +246,30 @@ fn the_lane_test_of_four_children_equals_the_group_and_single_ray_tests() {
             }
         });
         let lr = packet::LaneRays::new(&rays);
+        // The same lanes read from the packet's layout.
+        let laid = packet::LaneRays::from_laid(&crate::packet::boxes::PacketBoxes::new(&rays, u32::MAX >> 16));
         for (l, ray) in rays.iter().enumerate() {
             if !ray.is_valid() || ray.dir.cmpeq(Vec3::ZERO).any() {
                 continue;
             }
             let (mask, near) = lr.test_lane(&node, l, closest[l]);
+            let (laid_mask, laid_near) = laid.test_lane(&node, l, closest[l]);
+            assert_eq!(mask, laid_mask, "case {k} lane {l}: from the layout");
+            assert_eq!(
+                near.to_array().map(f32::to_bits),
+                laid_near.to_array().map(f32::to_bits)
+            );
             let mask = mask & ((1 << used) - 1);
             let (g, j) = (l / 4, l % 4);
             let bound = wide::f32x4::new(std::array::from_fn(|i| closest[g * 4 + i]));
             for i in 0..used {
                 let (hits, nears) = lr.test(&node, i, g, bound);
+                let (laid_hits, laid_nears) = laid.test(&node, i, g, bound);
+                assert_eq!(hits, laid_hits, "case {k} lane {l} child {i}: from the layout");
+                assert_eq!(
+                    nears.to_array().map(f32::to_bits),
+                    laid_nears.to_array().map(f32::to_bits)
+                );
                 assert_eq!(mask >> i & 1, hits >> j & 1, "case {k} lane {l} child {i}");
                 if mask >> i & 1 != 0 {
                     assert_eq!(
