@@ -583,6 +583,12 @@ fn oracle_check(
     })
 }
 
+/// Frames sampled at least by the builders table: its refitted / afresh
+/// render ratio is a median of per-frame ratios, and with 3 frames it
+/// swung 0.86-1.13 between runs of the same build on the 2-core machine
+/// (9 frames: 0.93-1.06; `refit_frames` example).
+pub(super) const BUILDER_FRAMES: usize = 9;
+
 /// Fast (refitted or afresh) vs SAH trees for the moving triangles of
 /// `name`: commit and render time per frame. Each sampled frame is committed
 /// right after the frame before it, as when the animation plays, so that a
@@ -616,7 +622,7 @@ fn builders(o: &BenchOptions, name: &str) -> Result<BuilderRun, String> {
         player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
         players.push((player, r));
     }
-    let n = o.frames.max(3);
+    let n = o.frames.max(BUILDER_FRAMES);
     let (mut commits, mut renders) = (vec![Vec::new(); variants.len()], vec![Vec::new(); variants.len()]);
     for k in 0..n {
         for turn in 0..variants.len() {
@@ -1024,6 +1030,7 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
         kinds,
         quality,
         builders: builder_runs,
+        builder_frames: o.frames.max(BUILDER_FRAMES),
         rebuild_threads: *o.threads.iter().max().unwrap_or(&1),
         rebuilds,
         embree,

@@ -490,7 +490,8 @@ fn builder_sections(md: &mut String, res: &Results) {
     }
     let _ = writeln!(
         md,
-        "\n## Moving objects: fast, refitted and SAH trees\n\nThe museums' moving triangles under each builder (`Context::set_refit`, `Context::set_redefinition_builder`; the BVH rows with `Context::set_accel`), each sampled frame committed right after the two frames before it, as when the animation plays; same triangles, so the cost moves between commit and render. The builders take turns frame by frame (the first of them changing from frame to frame), so that the machine's phases fall on all of them alike."
+        "\n## Moving objects: fast, refitted and SAH trees\n\nThe museums' moving triangles under each builder (`Context::set_refit`, `Context::set_redefinition_builder`; the BVH rows with `Context::set_accel`), each sampled frame committed right after the two frames before it, as when the animation plays; same triangles, so the cost moves between commit and render. The builders take turns frame by frame (the first of them changing from frame to frame), so that the machine's phases fall on all of them alike; medians over {} frames.",
+        res.builder_frames
     );
     for b in &res.builders {
         let _ = writeln!(

@@ -201,6 +201,8 @@ pub(super) struct Results {
     pub(super) kinds: Vec<KindRow>,
     pub(super) quality: Vec<QualityRun>,
     pub(super) builders: Vec<BuilderRun>,
+    /// Frames each builder rendered in the builders table.
+    pub(super) builder_frames: usize,
     pub(super) rebuild_threads: usize,
     pub(super) rebuilds: Vec<Rebuild>,
     pub(super) embree: Vec<EmbreeRow>,
