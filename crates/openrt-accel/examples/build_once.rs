@@ -1,6 +1,7 @@
-//! Builds SAH trees (for profiling): `build_once [N] [binned_above|exact|bvh|refit|bvhrefit [THREADS]]`;
+//! Builds SAH trees (for profiling): `build_once [N] [binned_above|exact|bvh|bvhsplit|refit|bvhrefit [THREADS]]`;
 //! without a mode, the kd-tree's default parameters; `bvh` builds BVHs
-//! (one thread) and prints the median of seven builds; `refit` refits a
+//! (one thread) and prints the median of seven builds (`bvhsplit`: pre-split
+//! builds, `Bvh::build_presplit`, of a soup of slivers); `refit` refits a
 //! fast tree to 200 frames of a smooth motion (one thread) and prints the
 //! median refit time; `bvhrefit` refits a BVH to the same motion on a pool
 //! of THREADS (default 1).
@@ -50,19 +51,38 @@ fn main() {
         println!("refit: {:.3} ms median, {refitted} / 200 refitted", ms[ms.len() / 2]);
         return;
     }
-    if mode == "bvh" {
-        let tris = openrt_accel::meshgen::bumpy_sphere(n, 42, 0.5);
-        let mut ms: Vec<f64> = (0..7)
-            .map(|_| openrt_accel::Bvh::build(tris.clone()).unwrap().stats().build_ms)
-            .collect();
+    if mode == "bvh" || mode == "bvhsplit" {
+        let tris = if mode == "bvh" {
+            openrt_accel::meshgen::bumpy_sphere(n, 42, 0.5)
+        } else {
+            let b = openrt_accel::Aabb::new(glam::Vec3::splat(-1.0), glam::Vec3::splat(1.0));
+            openrt_accel::meshgen::random_soup(n, 42, b, 0.05)
+        };
+        let build = |t: Vec<openrt_accel::Triangle>| {
+            if mode == "bvh" {
+                openrt_accel::Bvh::build(t)
+            } else {
+                openrt_accel::Bvh::build_presplit(t)
+            }
+            .unwrap()
+        };
+        let mut ms: Vec<f64> = (0..7).map(|_| build(tris.clone()).stats().build_ms).collect();
         ms.sort_by(f64::total_cmp);
-        let bvh = openrt_accel::Bvh::build(tris).unwrap();
+        if mode == "bvhsplit" {
+            let mut plain: Vec<f64> = (0..7)
+                .map(|_| openrt_accel::Bvh::build(tris.clone()).unwrap().stats().build_ms)
+                .collect();
+            plain.sort_by(f64::total_cmp);
+            println!("the same soup without pre-splitting: {:.2} ms median", plain[3]);
+        }
+        let bvh = build(tris);
         println!(
-            "bvh: {:.2} ms median ({:.2} Mtris/s), SAH cost {:.3}, {} nodes",
+            "{mode}: {:.2} ms median ({:.2} Mtris/s), SAH cost {:.3}, {} nodes, {} references added",
             ms[3],
             n as f64 / ms[3] / 1e3,
             bvh.sah_cost(),
-            bvh.stats().nodes
+            bvh.stats().nodes,
+            bvh.stats().presplit
         );
         return;
     }

@@ -80,6 +80,14 @@ pub enum ObjectTree {
     Bvh(Bvh, BuilderKind),
 }
 
+/// Whether SAH builds of BVH objects (those built once) pre-split their
+/// most wasteful triangles (`Bvh::build_presplit`): yes, unless
+/// `OPENRT_BVH_PRESPLIT=0` (read once; for measurements side by side).
+fn presplit() -> bool {
+    static PRESPLIT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *PRESPLIT.get_or_init(|| std::env::var("OPENRT_BVH_PRESPLIT").as_deref() != Ok("0"))
+}
+
 /// Calls the same method on either structure.
 macro_rules! both {
     ($self:expr, $t:ident => $e:expr) => {
@@ -109,6 +117,7 @@ impl ObjectTree {
             (Accel::Bvh, Some(Self::Bvh(p, BuilderKind::Fast))) if fast => {
                 Self::Bvh(Bvh::refit(p, tris, BVH_REFIT_COST_LIMIT)?, builder)
             }
+            (Accel::Bvh, _) if !fast && presplit() => Self::Bvh(Bvh::build_presplit(tris)?, builder),
             (Accel::Bvh, _) => Self::Bvh(Bvh::build(tris)?, builder),
         })
     }

@@ -97,6 +97,12 @@ impl Ref {
     fn bounds(&self) -> Box3A {
         Box3A(self.lo(), self.hi())
     }
+
+    /// The reference's box.
+    #[cfg(test)]
+    pub(crate) fn aabb(&self) -> Aabb {
+        self.bounds().aabb()
+    }
 }
 
 /// A box as two `Vec3A` corners (empty: `+inf` / `-inf`).

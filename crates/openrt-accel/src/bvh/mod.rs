@@ -21,6 +21,7 @@ mod instances;
 mod node;
 mod node8;
 mod packet;
+mod presplit;
 mod refit;
 mod walk;
 #[cfg(target_arch = "x86_64")]
@@ -31,6 +32,7 @@ use std::time::Instant;
 pub use build::BVH_MAX_LEAF;
 pub use instances::{INSTANCE_BVH_MAX, INSTANCE_BVH_POOL_MIN, INSTANCE_BVH_TASK_MIN, InstanceBvh};
 pub use node::{BVH_MAX_DEPTH, BVH_WIDTH, BvhNode, BvhSlot};
+pub use presplit::{BVH_PRESPLIT_BUDGET, BVH_PRESPLIT_MAX_PIECES, BVH_PRESPLIT_MIN_WASTE};
 
 use crate::error::AccelError;
 use crate::geom::aabb::Aabb;
@@ -116,6 +118,9 @@ pub struct BvhStats {
     pub base_cost: f64,
     /// Heap bytes: nodes, leaf indices, blocks and triangles.
     pub bytes: usize,
+    /// References added by pre-splitting ([`Bvh::build_presplit`]); 0
+    /// for a plain build.
+    pub presplit: usize,
 }
 
 /// A wide BVH over triangles (see the module docs). `Hit::prim` is the
@@ -212,10 +217,35 @@ impl Bvh {
     /// Zero-area triangles and triangles with non-finite vertices are left
     /// out (counted in [`BvhStats::dropped`]).
     pub fn build(tris: Vec<Triangle>) -> Result<Self, AccelError> {
+        Self::build_with(tris, 0.0)
+    }
+
+    /// [`Bvh::build`] after pre-splitting the triangles whose boxes waste
+    /// the most area (`presplit.rs`; up to [`BVH_PRESPLIT_BUDGET`] extra
+    /// references per triangle): for objects built once. A triangle may
+    /// then sit in several leaves; every query's answer is the same.
+    pub fn build_presplit(tris: Vec<Triangle>) -> Result<Self, AccelError> {
+        Self::build_with(tris, BVH_PRESPLIT_BUDGET)
+    }
+
+    /// The build with `budget` extra references per triangle.
+    fn build_with(tris: Vec<Triangle>, budget: f32) -> Result<Self, AccelError> {
         let start = Instant::now();
         check_count(tris.len())?;
         let mut refs = refs_of(&tris);
         let bounds = bounds_of(&refs);
+        let valid = refs.len();
+        // Truncated: a whole number of references, within the index limit.
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            clippy::cast_precision_loss
+        )]
+        let extra = ((valid as f32 * budget) as usize).min(BVH_MAX_PRIMITIVES.saturating_sub(valid));
+        if extra > 0 {
+            refs = presplit::presplit(&tris, refs, &bounds, extra);
+        }
+        let presplit = refs.len() - valid;
         let mut nodes = Vec::with_capacity(refs.len() / 2 + 1);
         let mut depth = 0;
         if !refs.is_empty() {
@@ -226,7 +256,6 @@ impl Bvh {
             };
             depth = build_into(&mut refs, 0, bounds, None, 0, task_min, &mut nodes);
         }
-        let valid = refs.len();
         let ids: Vec<u32> = refs.iter().map(Ref::id).collect();
         let (prim_ids, blocks, leaves) = pack(&mut nodes, &ids, &tris);
         let mut bvh = Self {
@@ -246,6 +275,7 @@ impl Bvh {
                 sah_cost: 0.0,
                 base_cost: 0.0,
                 bytes: 0,
+                presplit,
             },
             tris,
         };
@@ -623,6 +653,10 @@ impl Bvh {
             };
         }
         let mut seen = vec![0u8; self.tris.len()];
+        // Pre-split trees: a triangle in one or more leaves, its vertices
+        // each in the box of a leaf naming it (bit per vertex).
+        let split = self.stats.presplit > 0;
+        let mut corners = vec![0u8; if split { self.tris.len() } else { 0 }];
         let mut reached = vec![false; self.nodes.len()];
         let mut stack = vec![(0u32, 1usize)];
         reached[0] = true;
@@ -668,7 +702,15 @@ impl Bvh {
                                 return bad(format!("leaf names the invalid triangle {p}"));
                             }
                             let tb = Aabb::from_points(t);
-                            if !b.contains_box(&tb) {
+                            if split {
+                                // A piece: the box meets the triangle's.
+                                if b.intersection(tb).is_empty() {
+                                    return bad(format!("node {n} slot {i}: box misses triangle {p}"));
+                                }
+                                for (v, &corner) in t.iter().enumerate() {
+                                    corners[p as usize] |= u8::from(b.contains(corner)) << v;
+                                }
+                            } else if !b.contains_box(&tb) {
                                 return bad(format!("node {n} slot {i}: box does not hold triangle {p}"));
                             }
                             let stored = self.blocks[(off + k) / LANES].triangle((off + k) % LANES);
@@ -677,7 +719,7 @@ impl Bvh {
                             {
                                 return bad(format!("triangle {p}'s block copy differs"));
                             }
-                            seen[p as usize] += 1;
+                            seen[p as usize] = seen[p as usize].saturating_add(1);
                         }
                     }
                 }
@@ -692,7 +734,14 @@ impl Bvh {
         }
         for (p, t) in self.tris.iter().enumerate() {
             let want = u8::from(is_valid_triangle(t));
-            if seen[p] != want {
+            if split {
+                if (seen[p] > 0) != (want > 0) {
+                    return bad(format!("triangle {p} is in {} leaves (valid: {})", seen[p], want > 0));
+                }
+                if want > 0 && corners[p] != 0b111 {
+                    return bad(format!("a vertex of triangle {p} is in no leaf box naming it"));
+                }
+            } else if seen[p] != want {
                 return bad(format!("triangle {p} is in {} leaves, not {want}", seen[p]));
             }
         }
@@ -790,7 +839,17 @@ fn pack(nodes: &mut [BvhNode], ids: &[u32], tris: &[Triangle]) -> (Vec<u32>, Vec
             leaves += 1;
             let (off, cnt) = ((c & !LEAF_BIT) as usize, node.count[i] as usize);
             node.child[i] = LEAF_BIT | new_ids.len() as u32;
-            for chunk in ids[off..off + cnt].chunks(LANES) {
+            // Pieces of one pre-split triangle in one leaf: named once.
+            let mut mine = [0u32; BVH_MAX_LEAF];
+            let mut n = 0;
+            for &id in &ids[off..off + cnt] {
+                if !mine[..n].contains(&id) {
+                    mine[n] = id;
+                    n += 1;
+                }
+            }
+            node.count[i] = n as u32;
+            for chunk in mine[..n].chunks(LANES) {
                 blocks.push(TriBlock::pack(chunk, tris));
                 new_ids.extend_from_slice(chunk);
                 let last = chunk[chunk.len() - 1];

@@ -13,10 +13,21 @@ use crate::testing::oracle::BruteForce;
 /// Every answer of `bvh` equals the kd-tree's over the same triangles, bit
 /// for bit, and passes the oracle.
 fn same_as_kd_and_oracle(tris: &[Triangle], rays: &[Ray], seed: u64) -> usize {
-    let bvh = Bvh::build(tris.to_vec()).expect("build");
-    bvh.validate().expect("valid");
+    let plain = Bvh::build(tris.to_vec()).expect("build");
+    plain.validate().expect("valid");
+    let split = Bvh::build_presplit(tris.to_vec()).expect("pre-split build");
+    split.validate().expect("valid pre-split tree");
     let kd = KdTree::build_sah(tris.to_vec()).expect("kd build");
     let oracle = BruteForce::new(tris);
+    let mut hits = 0;
+    for bvh in [&plain, &split] {
+        hits = same_answers(bvh, &kd, &oracle, tris, rays, seed);
+    }
+    hits
+}
+
+/// [`same_as_kd_and_oracle`] for one tree.
+fn same_answers(bvh: &Bvh, kd: &KdTree, oracle: &BruteForce, tris: &[Triangle], rays: &[Ray], seed: u64) -> usize {
     let mut rng = SmallRng::seed_from_u64(seed);
     let mut hits = 0;
     for (i, ray) in rays.iter().enumerate() {
@@ -422,15 +433,19 @@ fn hostile_inputs_build_valid_shallow_trees() {
         ("junk", junk),
         ("empty", Vec::new()),
     ] {
-        let bvh = Bvh::build(tris.clone()).unwrap();
-        bvh.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert!(bvh.stats().depth <= BVH_MAX_DEPTH, "{name}");
-        let rays = meshgen::random_rays(300, 2, Aabb::new(Vec3::splat(-1.0), Vec3::splat(2.0)));
-        let oracle = BruteForce::new(&tris);
-        for ray in &rays {
-            oracle
-                .check_closest(ray, bvh.intersect(ray))
-                .unwrap_or_else(|e| panic!("{name}: {e}"));
+        for bvh in [
+            Bvh::build(tris.clone()).unwrap(),
+            Bvh::build_presplit(tris.clone()).unwrap(),
+        ] {
+            bvh.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(bvh.stats().depth <= BVH_MAX_DEPTH, "{name}");
+            let rays = meshgen::random_rays(300, 2, Aabb::new(Vec3::splat(-1.0), Vec3::splat(2.0)));
+            let oracle = BruteForce::new(&tris);
+            for ray in &rays {
+                oracle
+                    .check_closest(ray, bvh.intersect(ray))
+                    .unwrap_or_else(|e| panic!("{name}: {e}"));
+            }
         }
     }
     let junk_stats = Bvh::build(meshgen::bumpy_sphere(10, 1, 0.1)).unwrap();
@@ -465,6 +480,22 @@ fn validate_catches_broken_trees() {
     let last = moved.tris.len() - 1;
     moved.tris[last][0].x += 1e-3;
     assert!(moved.validate().is_err(), "a block that differs from its triangle");
+    // A pre-split tree whose leaf boxes no longer hold their pieces: shrunk
+    // to their lower halves, parents unchanged (still holding them).
+    let split = Bvh::build_presplit(meshgen::random_soup(500, 4, Aabb::new(Vec3::ZERO, Vec3::ONE), 0.5)).unwrap();
+    split.validate().unwrap();
+    assert!(split.stats().presplit > 0);
+    let mut cut = split;
+    for node in &mut cut.nodes {
+        for i in 0..BVH_WIDTH {
+            if matches!(node.slot(i), BvhSlot::Leaf { .. }) {
+                let b = node.child_box(i);
+                node.set_box(i, &Aabb::new(b.min, b.min + (b.max - b.min) * 0.5));
+            }
+        }
+    }
+    let e = cut.validate().unwrap_err().to_string();
+    assert!(e.contains("no leaf box") || e.contains("misses"), "{e}");
 }
 
 /// Packets of `N` lanes (masked at random) answer as the single-ray walk,
@@ -542,6 +573,14 @@ fn packets_answer_as_single_rays() {
         .collect();
     coplanar.extend(shifted);
     let grid = Bvh::build(coplanar).unwrap();
+    // A pre-split soup, every triangle twice (each hit an exact tie that
+    // the tie rule decides, in whichever leaves the pieces went).
+    let soup = meshgen::random_soup(1500, 8, b, 0.4);
+    let mut twice = soup.clone();
+    twice.extend(soup);
+    let split = Bvh::build_presplit(twice).unwrap();
+    split.validate().unwrap();
+    assert!(split.stats().presplit > 100, "{} pieces", split.stats().presplit);
     let grid_rays = meshgen::camera_rays(Vec3::new(5.0, 4.0, -9.0), Vec3::new(6.0, 6.0, 0.0), 32, 32, 50.0);
     for (name, bvh, rays, least) in [
         ("camera", &bvh, &camera, 200),
@@ -550,6 +589,10 @@ fn packets_answer_as_single_rays() {
         ("axis", &bvh, &axis, 50),
         ("mirrored", &bvh, &mirrored, 200),
         ("coplanar", &grid, &grid_rays, 500),
+        ("camera, pre-split", &split, &camera, 200),
+        ("shadow, pre-split", &split, &shadow, 100),
+        ("random, pre-split", &split, &random, 80),
+        ("mirrored, pre-split", &split, &mirrored, 200),
     ] {
         for (n, h) in [
             (4, packets_as_single_rays::<4>(bvh, rays, 1)),
