@@ -255,11 +255,7 @@ mod tests {
                 Vec3::new(61.0, -19.0, 33.5),
             ],
         ];
-        let refs: Vec<Ref> = tris
-            .iter()
-            .enumerate()
-            .map(|(i, t)| Ref::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]), i as u32))
-            .collect();
+        let refs = crate::bvh::refs_of(&tris);
         let bounds = Aabb::from_points(&tris.concat());
         let out = presplit(&tris, refs, &bounds, 20);
         assert!(out.len() > 2, "{} references", out.len());
@@ -298,11 +294,7 @@ mod tests {
             tris.push([o, o + Vec3::new(10.0, 9.0, 8.0), o + Vec3::new(10.0, 9.0, 8.1)]);
             tris.push([o, o + Vec3::X, o + Vec3::Y]);
         }
-        let refs: Vec<Ref> = tris
-            .iter()
-            .enumerate()
-            .map(|(i, t)| Ref::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]), i as u32))
-            .collect();
+        let refs = crate::bvh::refs_of(&tris);
         let bounds = Aabb::from_points(&tris.concat());
         for budget in [1, 50, 200, 100_000] {
             let out = presplit(&tris, refs.clone(), &bounds, budget);
