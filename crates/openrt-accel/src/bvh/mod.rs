@@ -639,8 +639,9 @@ impl Bvh {
     /// Checks every invariant: nodes reached once each from the root, only
     /// forward; child boxes holding their subtrees (leaf triangles' boxes
     /// exactly); unused slots empty; leaves on block boundaries with 1 to
-    /// [`BVH_MAX_LEAF`] triangles, every valid triangle in exactly one leaf,
-    /// blocks equal to their triangles bit for bit; depth within
+    /// [`BVH_MAX_LEAF`] triangles, every valid triangle in exactly one leaf
+    /// (pre-split: in one or more, whose boxes meet the triangle's and hold
+    /// each of its vertices), blocks equal to their triangles bit for bit; depth within
     /// [`BVH_MAX_DEPTH`].
     pub fn validate(&self) -> Result<(), AccelError> {
         let bad = |m: String| Err(AccelError::Invalid(format!("BVH: {m}")));

@@ -339,6 +339,28 @@ fn refits_in_parallel_and_alone_agree() {
 }
 
 #[test]
+fn pre_split_trees_refit_to_whole_triangles() {
+    // A refit takes each leaf's box from its triangles (whole, not the
+    // pieces): still a valid tree, the oracle's answers.
+    let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+    let soup = meshgen::random_soup(2000, 12, b, 0.4);
+    let split = Bvh::build_presplit(soup.clone()).unwrap();
+    assert!(split.stats().presplit > 0);
+    let moved: Vec<Triangle> = soup
+        .iter()
+        .map(|t| t.map(|v| v + Vec3::new(0.02 * v.y.sin(), 0.0, 0.01)))
+        .collect();
+    let refit = Bvh::refit(&split, moved.clone(), f64::INFINITY).unwrap();
+    assert!(refit.stats().refitted);
+    refit.validate().unwrap();
+    let oracle = BruteForce::new(&moved);
+    for ray in &meshgen::random_rays(2000, 13, b) {
+        oracle.check_closest(ray, refit.intersect(ray)).unwrap();
+        oracle.check_occluded(ray, refit.occluded(ray)).unwrap();
+    }
+}
+
+#[test]
 fn refits_follow_moving_triangles_and_rebuild_when_the_tree_degrades() {
     let tris = meshgen::bumpy_sphere(4000, 3, 0.2);
     let first = Bvh::build(tris.clone()).unwrap();
