@@ -773,3 +773,36 @@ fn validate_catches_a_broken_eight_wide_copy() {
     gone.nodes8.clear();
     assert!(gone.validate().is_err(), "no copy on a CPU that walks it");
 }
+
+#[test]
+fn any_hit_packets_leave_few_lanes_to_walk_alone() {
+    // At most one lane in `ALONE_SHARE`: 2 of 8, 5 of 16, 1 of 4.
+    assert!(few::<8>(0b11) && !few::<8>(0b111));
+    assert!(few::<16>(0x1F) && !few::<16>(0x3F));
+    assert!(few::<4>(0b1) && !few::<4>(0b11));
+    // Sparse shadow packets answer as single rays (and name a leaf of the tree).
+    let tris = meshgen::bumpy_sphere(3000, 9, 0.3);
+    let bvh = Bvh::build(tris).unwrap();
+    let light = Vec3::new(3.0, 4.0, -2.0);
+    let rays: Vec<Ray> = meshgen::random_rays(512, 10, Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3)))
+        .iter()
+        .map(|r| Ray::new(r.origin, light - r.origin, 0.0, 1.0))
+        .collect();
+    let mut blocked = 0;
+    for chunk in rays.chunks_exact(8) {
+        let pk: [Ray; 8] = std::array::from_fn(|l| chunk[l]);
+        for lanes in [0b1u32, 0b1000_0001, 0b0110_0000] {
+            let (got, leaf) = bvh.occluder_packet_in(&pk, lanes, None, None);
+            for (l, ray) in pk.iter().enumerate() {
+                let want = lanes & (1 << l) != 0 && bvh.occluded(ray);
+                assert_eq!(got & (1 << l) != 0, want, "lane {l} of {lanes:#b}");
+                blocked += usize::from(want);
+            }
+            assert_eq!(leaf.is_some(), got != 0);
+            if let Some(leaf) = leaf {
+                assert!(bvh.lists().owns(leaf));
+            }
+        }
+    }
+    assert!(blocked > 50, "{blocked} blocked lanes");
+}
