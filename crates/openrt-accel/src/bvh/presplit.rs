@@ -21,7 +21,7 @@ use super::build::Ref;
 use crate::geom::aabb::Aabb;
 use crate::geom::triangle::Triangle;
 
-/// Extra references the pre-splitting may add, per reference.
+/// Extra references the pre-splitting may add, per valid triangle.
 pub const BVH_PRESPLIT_BUDGET: f32 = 0.5;
 
 /// Most pieces of one triangle.
@@ -40,8 +40,9 @@ pub const BVH_PRESPLIT_MIN_WASTE: f32 = 3.0;
 /// Finest level of the dyadic grid searched for a plane (2^20 cells).
 const MAX_LEVEL: u32 = 20;
 
-/// Vertices of a triangle clipped by planes (3 + one per plane, at most
-/// six planes in effect on a convex polygon's box split).
+/// Vertices a piece may hold: a triangle cut by the six faces of a box has
+/// at most 9; the rest is room for vertices that rounding puts on both
+/// sides of a plane (past it, the piece is kept whole).
 const MAX_VERTICES: usize = 3 + 8;
 
 /// A piece: a convex polygon (part of one triangle) and its box.
@@ -171,12 +172,11 @@ pub(crate) fn presplit(tris: &[Triangle], refs: Vec<Ref>, bounds: &Aabb, budget:
         .iter()
         .map(|r| {
             let t = &tris[r.id() as usize];
-            let p = Piece::of(t);
-            let ideal = ideal_area(t);
-            if p.area() <= ideal * BVH_PRESPLIT_MIN_WASTE {
+            let (area, ideal) = (Piece::of(t).area(), ideal_area(t));
+            if area <= ideal * BVH_PRESPLIT_MIN_WASTE {
                 0.0
             } else {
-                f64::from(p.area() - ideal).cbrt()
+                f64::from(area - ideal).cbrt()
             }
         })
         .collect();
