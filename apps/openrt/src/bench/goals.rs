@@ -1,6 +1,8 @@
 //! The goals the report judges and the paper's figures, as data in one
 //! place; `targets` turns a run's results into verdicts.
 
+use openrt_core::Accel;
+
 use super::results::{Results, Row};
 
 /// The paper's figures (Wald, Benthin & Slusallek 2003), fps for 1, 2, 4, 8
@@ -42,6 +44,10 @@ pub(super) const WHITTED_SHADING_SHARE_PCT: f64 = 15.0;
 /// A skinned glTF mesh of about 100k triangles: skinning plus the refit
 /// per frame on the most threads, at most (ms).
 pub(super) const SKIN_REFIT_100K_MS: f64 = 5.0;
+/// The default object structure (`Accel::default()`) is the faster one on
+/// at least this share of the frames table's rows (per cent): issue 39's
+/// rule that the default follows the bench.
+pub(super) const DEFAULT_ACCEL_SHARE_PCT: f64 = 50.0;
 /// Samples per pixel of the speed-against-error reference.
 pub(super) const REFERENCE_SPP: u32 = 64;
 /// PSNR that counts as "close to the reference" in the report.
@@ -205,6 +211,7 @@ pub(super) fn targets(results: &Results, default_backend: &str) -> Vec<Target> {
             false,
         ));
     }
+    out.push(default_accel_target(results));
     let kitchen_whitted = |t: usize| {
         rows.iter()
             .find(|r| r.scene == "kitchen" && r.mode == "Whitted" && r.threads == t)
@@ -220,9 +227,97 @@ pub(super) fn targets(results: &Results, default_backend: &str) -> Vec<Target> {
     out
 }
 
+/// The packets' rows of an object structure in the frames table: `kd`'s
+/// backend is named `kd`, the BVH's `bvh` (`measure.rs`'s `label`).
+fn packets_label(accel: Accel) -> &'static str {
+    match accel {
+        Accel::Kd => "kd",
+        Accel::Bvh => "bvh",
+    }
+}
+
+/// The share of the frames table's rows (scene, mode, threads) on which
+/// the default object structure's packets give at least the other's frame
+/// rate (both structures played frame by frame in turn, `measure.rs`).
+fn default_accel_share(frames: &[Row]) -> Option<f64> {
+    let default = Accel::default();
+    let other = match default {
+        Accel::Kd => Accel::Bvh,
+        Accel::Bvh => Accel::Kd,
+    };
+    let (mut rows, mut wins) = (0u32, 0u32);
+    for d in frames.iter().filter(|r| r.backend == packets_label(default)) {
+        if let Some(o) = frames.iter().find(|o| {
+            o.backend == packets_label(other) && o.scene == d.scene && o.mode == d.mode && o.threads == d.threads
+        }) {
+            rows += 1;
+            wins += u32::from(d.fps() >= o.fps());
+        }
+    }
+    (rows > 0).then(|| 100.0 * f64::from(wins) / f64::from(rows))
+}
+
+/// The verdict on the default object structure ([`DEFAULT_ACCEL_SHARE_PCT`]).
+fn default_accel_target(results: &Results) -> Target {
+    let default = Accel::default().name();
+    Target {
+        what: format!(
+            "frame rows (frames table) on which the default object structure, `{default}`, is at least as fast as the other (else the default should change)"
+        ),
+        got: default_accel_share(&results.frames),
+        goal: DEFAULT_ACCEL_SHARE_PCT,
+        unit: "%",
+        higher: true,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn frame(scene: &str, backend: &'static str, threads: usize, render_ms: f64) -> Row {
+        Row {
+            scene: scene.into(),
+            mode: "Whitted",
+            backend,
+            threads,
+            commit_ms: 0.0,
+            toplevel_ms: 0.0,
+            fast_ms: 0.0,
+            promotions: 0,
+            render_ms,
+            rays: 0.0,
+            triangles: 0,
+            instances: 0,
+        }
+    }
+
+    /// Rows pair by scene, mode and threads; ties count for the default;
+    /// other backends and unpaired rows are not counted.
+    #[test]
+    fn the_default_structure_share_counts_paired_rows() {
+        let (d, o) = (packets_label(Accel::default()), packets_label(Accel::Bvh));
+        assert_eq!(d, "kd", "the test names the default");
+        let rows = vec![
+            frame("a", d, 1, 10.0),
+            frame("a", o, 1, 12.0),
+            frame("a", d, 2, 10.0),
+            frame("a", o, 2, 10.0),
+            frame("b", d, 1, 10.0),
+            frame("b", o, 1, 9.0),
+            frame("c", d, 1, 1.0),
+            frame("c", "embree-packet", 1, 100.0),
+        ];
+        let share = default_accel_share(&rows).expect("three pairs");
+        assert!((share - 200.0 / 3.0).abs() < 1e-9, "{share}");
+        assert_eq!(default_accel_share(&rows[6..]), None);
+        let results = Results {
+            frames: vec![frame("b", d, 1, 10.0), frame("b", o, 1, 9.0)],
+            ..Results::default()
+        };
+        let t = default_accel_target(&results);
+        assert_eq!(t.met(), Some(false), "{}", t.line());
+    }
 
     #[test]
     fn targets_judge_minimums_and_maximums() {

@@ -72,144 +72,206 @@ fn label(accel: Accel, b: Backend) -> &'static str {
     }
 }
 
-/// One scene's frames through every backend of the build, with `accel`
-/// under the instances (with BVHs, only the backends that traverse them).
-/// `reference`: the `kd` images of the first sampled frame, written by the
-/// kd pass and compared with by the BVH pass.
+/// One structure's side of [`measure_scene`]: its own player (the scene
+/// committed with `accel` under the instances), renderers and samples.
+struct Side {
+    accel: Accel,
+    player: ScenePlayer,
+    renderers: Vec<(usize, Renderer)>,
+    acc: Vec<Acc>,
+    images: Vec<Image>,
+    tri: usize,
+    inst: usize,
+}
+
+impl Side {
+    /// Opens the scene with `accel`, builds its trees (the first commit)
+    /// and makes a renderer per thread count and backend: every backend
+    /// of the build with kd-trees, only those that traverse them with BVHs.
+    fn open(o: &BenchOptions, name: &str, accel: Accel, pools: &[(usize, ThreadPool)]) -> Result<Self, String> {
+        let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+        player.ctx_mut().set_accel(accel);
+        // Warm-up: the first commit builds every tree.
+        player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
+        let renderers: Vec<(usize, Renderer)> = pools
+            .iter()
+            .flat_map(|(t, pool)| {
+                Backend::ALL
+                    .iter()
+                    .filter(move |&&b| accel == Accel::Kd || matches!(b, Backend::Kd | Backend::KdSingle))
+                    // The device run: packets only (the default backend and Embree's).
+                    .filter(move |&&b| !o.device || matches!(b.name(), "kd" | "embree-packet"))
+                    .map(move |&b| {
+                        let mut r = crate::new_renderer(pool.clone());
+                        r.set_backend(b);
+                        (*t, r)
+                    })
+            })
+            .collect();
+        // Warm-up: a peer backend builds its own scene on its first frame,
+        // as the trees were built by the warm-up commit above. The first
+        // thread count's renderers, measured first, render a whole frame of
+        // each mode: measured cold, their frames came out slow (1 -> 2 threads
+        // over 2x faster, on 2 cores and on 16).
+        {
+            let scene = player.ctx().scene();
+            let tiny = RenderSettings {
+                width: 8,
+                height: 8,
+                ..settings(o, RenderMode::GlLike, 0)
+            };
+            let cam = player.camera(player.time_of(0));
+            for (t, r) in &renderers {
+                if *t == o.threads[0] {
+                    for mode in [RenderMode::GlLike, RenderMode::Whitted] {
+                        r.render(&scene, &player.env(), &cam, &settings(o, mode, 3))
+                            .map_err(|e| e.to_string())?;
+                    }
+                } else {
+                    r.render(&scene, &player.env(), &cam, &tiny)
+                        .map_err(|e| e.to_string())?;
+                }
+            }
+        }
+        let n = 2 * renderers.len();
+        Ok(Self {
+            accel,
+            player,
+            renderers,
+            acc: vec![Default::default(); n],
+            images: vec![Image::default(); n],
+            tri: 0,
+            inst: 0,
+        })
+    }
+
+    /// Commits frame `f` and renders it through this side's renderers of
+    /// `threads`, in both modes, sampling their times. On the first
+    /// sampled frame of the fewest threads the images are compared with
+    /// `reference`, the `kd` backend's with kd-trees (which this side
+    /// writes when it is that).
+    fn play(
+        &mut self,
+        name: &str,
+        o: &BenchOptions,
+        (threads, f, first): (usize, u32, bool),
+        diffs: &mut Vec<ImageDiff>,
+        reference: &mut Vec<Image>,
+    ) -> Result<(), String> {
+        let t = self.player.time_of(f);
+        let c = self.player.set_time(t).map_err(|e| e.to_string())?;
+        let scene = self.player.ctx().scene();
+        (self.tri, self.inst) = (scene.instanced_triangles(), scene.instances().len());
+        let cam = self.player.camera(t);
+        let env = self.player.env();
+        for (ri, (_, r)) in self.renderers.iter().enumerate().filter(|(_, (rt, _))| *rt == threads) {
+            for (mi, mode) in [RenderMode::GlLike, RenderMode::Whitted].into_iter().enumerate() {
+                // Each backend and mode renders into its own image, as
+                // `play` and an interactive loop do (the buffer reused).
+                let img = &mut self.images[2 * ri + mi];
+                let st = r
+                    .render_into(&scene, &env, &cam, &settings(o, mode, 3), img)
+                    .map_err(|e| e.to_string())?;
+                if first && threads == o.threads[0] {
+                    if self.accel == Accel::Kd && r.backend() == Backend::Kd {
+                        reference.push(img.clone());
+                    } else if let Some(kd) = reference.get(mi) {
+                        let (identical, off_share) = image_diff(kd, img);
+                        diffs.push(ImageDiff {
+                            scene: name.to_string(),
+                            mode: ["GL-like", "Whitted"][mi],
+                            backend: label(self.accel, r.backend()),
+                            identical,
+                            off_share,
+                        });
+                    }
+                }
+                let a = &mut self.acc[2 * ri + mi];
+                a.0.push(c.total_ms);
+                a.1.push(c.toplevel_ms);
+                a.2.push(c.build_ms(BuilderKind::Fast));
+                a.3 += c.promotions_swapped.len();
+                a.4.push(st.render_ms);
+                a.5.push(st.rays.total() as f64);
+            }
+        }
+        Ok(())
+    }
+
+    /// The frames table's rows of this side: medians of its samples.
+    fn rows(&self, name: &str, rows: &mut Vec<Row>) {
+        for (ri, (threads, r)) in self.renderers.iter().enumerate() {
+            for (mi, mode) in ["GL-like", "Whitted"].into_iter().enumerate() {
+                let a = self.acc[2 * ri + mi].clone();
+                rows.push(Row {
+                    scene: name.to_string(),
+                    mode,
+                    backend: label(self.accel, r.backend()),
+                    threads: *threads,
+                    commit_ms: median(a.0),
+                    toplevel_ms: median(a.1),
+                    fast_ms: median(a.2),
+                    promotions: a.3,
+                    render_ms: median(a.4),
+                    rays: median(a.5),
+                    triangles: self.tri,
+                    instances: self.inst,
+                });
+            }
+        }
+    }
+}
+
+/// One scene's frames through every backend of the build, with each of
+/// `accels` under the instances (kd first: its `kd` images are the
+/// reference the others are compared with). Each structure has its own
+/// player; they play the sampled frames in turn, frame by frame, the
+/// first of them changing from frame to frame, so that the machine's
+/// slow phases fall on both alike (the kd-vs-BVH verdict on the default
+/// compares their frames).
 fn measure_scene(
     o: &BenchOptions,
     name: &str,
-    accel: Accel,
+    accels: &[Accel],
     rows: &mut Vec<Row>,
     diffs: &mut Vec<ImageDiff>,
-    reference: &mut Vec<Image>,
 ) -> Result<(), String> {
-    let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
-    player.ctx_mut().set_accel(accel);
-    let n = player.frames();
-    // Warm-up: the first commit builds every tree.
-    player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
-    let samples: Vec<u32> = (0..o.frames)
-        .map(|k| ((k as u64 + 1) * u64::from(n) / (o.frames as u64 + 1)) as u32)
-        .collect();
-    // One pool per thread count, shared by the commit and a renderer per
+    // One pool per thread count, shared by the commits and a renderer per
     // backend (packets first).
     let pools: Vec<(usize, ThreadPool)> = o
         .threads
         .iter()
         .map(|&t| ThreadPool::new(t).map(|p| (t, p)).map_err(|e| e.to_string()))
         .collect::<Result<_, String>>()?;
-    let renderers: Vec<(usize, Renderer)> = pools
+    let mut sides: Vec<Side> = accels
         .iter()
-        .flat_map(|(t, pool)| {
-            Backend::ALL
-                .iter()
-                .filter(move |&&b| accel == Accel::Kd || matches!(b, Backend::Kd | Backend::KdSingle))
-                // The device run: packets only (the default backend and Embree's).
-                .filter(move |&&b| !o.device || matches!(b.name(), "kd" | "embree-packet"))
-                .map(move |&b| {
-                    let mut r = crate::new_renderer(pool.clone());
-                    r.set_backend(b);
-                    (*t, r)
-                })
-        })
+        .map(|&a| Side::open(o, name, a, &pools))
+        .collect::<Result<_, String>>()?;
+    let n = sides.first().map_or(0, |s| s.player.frames());
+    let samples: Vec<u32> = (0..o.frames)
+        .map(|k| ((k as u64 + 1) * u64::from(n) / (o.frames as u64 + 1)) as u32)
         .collect();
-    // Warm-up: a peer backend builds its own scene on its first frame,
-    // as the kd trees were built by the warm-up commit above. The first
-    // thread count's renderers, measured first, render a whole frame of
-    // each mode: measured cold, their frames came out slow (1 -> 2 threads
-    // over 2x faster, on 2 cores and on 16).
-    {
-        let scene = player.ctx().scene();
-        let tiny = RenderSettings {
-            width: 8,
-            height: 8,
-            ..settings(o, RenderMode::GlLike, 0)
-        };
-        let cam = player.camera(player.time_of(0));
-        for (t, r) in &renderers {
-            if *t == o.threads[0] {
-                for mode in [RenderMode::GlLike, RenderMode::Whitted] {
-                    r.render(&scene, &player.env(), &cam, &settings(o, mode, 3))
-                        .map_err(|e| e.to_string())?;
-                }
-            } else {
-                r.render(&scene, &player.env(), &cam, &tiny)
-                    .map_err(|e| e.to_string())?;
-            }
-        }
-    }
-    let mut acc: Vec<Acc> = vec![Default::default(); 2 * renderers.len()];
-    let mut images: Vec<Image> = vec![Image::default(); 2 * renderers.len()];
-    let (mut tri, mut inst) = (0, 0);
+    let mut reference = Vec::new();
     // Commit and render on the same number of threads: each thread count
     // plays the sampled frames with a commit pool of its size.
     for (threads, pool) in &pools {
-        let threads = *threads;
-        player.ctx_mut().set_pool(pool);
-        player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
-        let mut kd_images: Vec<Image> = Vec::new();
-        for &f in &samples {
-            let t = player.time_of(f);
-            let c = player.set_time(t).map_err(|e| e.to_string())?;
-            let scene = player.ctx().scene();
-            (tri, inst) = (scene.instanced_triangles(), scene.instances().len());
-            let cam = player.camera(t);
-            let env = player.env();
-            for (ri, (_, r)) in renderers.iter().enumerate().filter(|(_, (rt, _))| *rt == threads) {
-                for (mi, mode) in [RenderMode::GlLike, RenderMode::Whitted].into_iter().enumerate() {
-                    // Each backend and mode renders into its own image, as
-                    // `play` and an interactive loop do (the buffer reused).
-                    let img = &mut images[2 * ri + mi];
-                    let st = r
-                        .render_into(&scene, &env, &cam, &settings(o, mode, 3), img)
-                        .map_err(|e| e.to_string())?;
-                    // The first sampled frame's images on the fewest threads, against kd's.
-                    if f == samples[0] && threads == o.threads[0] {
-                        let against = if accel == Accel::Kd { &kd_images } else { &*reference };
-                        if accel == Accel::Kd && r.backend() == Backend::Kd {
-                            kd_images.push(img.clone());
-                            reference.push(img.clone());
-                        } else if let Some(kd) = against.get(mi) {
-                            let (identical, off_share) = image_diff(kd, img);
-                            diffs.push(ImageDiff {
-                                scene: name.to_string(),
-                                mode: ["GL-like", "Whitted"][mi],
-                                backend: label(accel, r.backend()),
-                                identical,
-                                off_share,
-                            });
-                        }
-                    }
-                    let a = &mut acc[2 * ri + mi];
-                    a.0.push(c.total_ms);
-                    a.1.push(c.toplevel_ms);
-                    a.2.push(c.build_ms(BuilderKind::Fast));
-                    a.3 += c.promotions_swapped.len();
-                    a.4.push(st.render_ms);
-                    a.5.push(st.rays.total() as f64);
-                }
+        for side in &mut sides {
+            side.player.ctx_mut().set_pool(pool);
+            side.player
+                .set_time(side.player.time_of(0))
+                .map_err(|e| e.to_string())?;
+        }
+        for (k, &f) in samples.iter().enumerate() {
+            let first = k == 0;
+            // The reference (kd first) on the first frame; then in turn.
+            for i in 0..sides.len() {
+                let s = if k % 2 == 0 { i } else { sides.len() - 1 - i };
+                sides[s].play(name, o, (*threads, f, first), diffs, &mut reference)?;
             }
         }
     }
-    for (ri, (threads, r)) in renderers.iter().enumerate() {
-        for (mi, mode) in ["GL-like", "Whitted"].into_iter().enumerate() {
-            let a = acc[2 * ri + mi].clone();
-            rows.push(Row {
-                scene: name.to_string(),
-                mode,
-                backend: label(accel, r.backend()),
-                threads: *threads,
-                commit_ms: median(a.0),
-                toplevel_ms: median(a.1),
-                fast_ms: median(a.2),
-                promotions: a.3,
-                render_ms: median(a.4),
-                rays: median(a.5),
-                triangles: tri,
-                instances: inst,
-            });
-        }
+    for side in &sides {
+        side.rows(name, rows);
     }
     Ok(())
 }
@@ -969,9 +1031,7 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
     let (mut frames, mut diffs) = (Vec::new(), Vec::new());
     for s in &o.scenes {
         eprintln!("bench: {s}");
-        let mut reference = Vec::new();
-        measure_scene(o, s, Accel::Kd, &mut frames, &mut diffs, &mut reference)?;
-        measure_scene(o, s, Accel::Bvh, &mut frames, &mut diffs, &mut reference)?;
+        measure_scene(o, s, &[Accel::Kd, Accel::Bvh], &mut frames, &mut diffs)?;
     }
     if o.device {
         return Ok(Results {
