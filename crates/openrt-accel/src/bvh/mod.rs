@@ -146,14 +146,15 @@ fn dense<const N: usize>(active: u32) -> bool {
     active.count_ones() as usize * 3 >= N
 }
 
-/// Any-hit packets: when at most one in [`ALONE_SHARE`] of a packet's lanes
-/// enter the tree, each walks alone.
+/// Packets of which at most one lane in [`ALONE_SHARE`] enters the tree
+/// walk those lanes alone, one by one.
 ///
 /// PERF: the single-ray walk (eight boxes a step on AVX2 CPUs, no lane
 /// bookkeeping) answers a few lanes sooner: shadow queries museum4k 0.93,
-/// kitchen 0.97 of the time; closest-hit packets gained nothing (robots
-/// primary 1.02), and walking every lane alone made kitchen shadows 1.7x
-/// slower (terrain's 0.7x).
+/// kitchen 0.97 of the time; primary queries terrain 0.96-0.98 (its trees'
+/// foliage parts the lanes), kitchen, robots and museum4k within noise;
+/// walking every lane alone made kitchen shadows 1.7x slower (terrain's
+/// 0.7x); alone at half the lanes: terrain primary no better.
 const ALONE_SHARE: usize = 3;
 
 /// `true` when few enough of the `N` lanes are `live` to walk alone.
@@ -492,7 +493,7 @@ impl Bvh {
             Some(b) => b.clip(&self.bounds, lanes, closest),
             None => self.bounds.clip_lanes(rays, lanes, closest),
         };
-        let alone = if N < 4 {
+        let alone = if N < 4 || few::<N>(live) {
             live
         } else {
             packet::parallel_lanes(rays, live)

@@ -806,3 +806,39 @@ fn any_hit_packets_leave_few_lanes_to_walk_alone() {
     }
     assert!(blocked > 50, "{blocked} blocked lanes");
 }
+
+/// Closest-hit packets with few lanes entering (each walks alone) give each
+/// lane the single ray's hit bit for bit, closer hits only below the lane's
+/// bound, and touch no lane outside the mask.
+#[test]
+fn closest_hit_packets_leave_few_lanes_to_walk_alone() {
+    let tris = meshgen::bumpy_sphere(3000, 9, 0.3);
+    let bvh = Bvh::build_presplit(tris).unwrap();
+    let rays = meshgen::random_rays(1024, 11, Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3)));
+    let mut hit = 0;
+    for chunk in rays.chunks_exact(8) {
+        let pk: [Ray; 8] = std::array::from_fn(|l| chunk[l]);
+        for lanes in [0b1u32, 0b1000_0001, 0b0110_0000, 0b1111_1111] {
+            let mut closest: [f32; 8] = std::array::from_fn(|l| pk[l].t_max);
+            let mut hits = [None; 8];
+            let found = bvh.intersect_packet_in(&pk, lanes, &mut closest, &mut hits, None, None);
+            for (l, ray) in pk.iter().enumerate() {
+                let want = if lanes & (1 << l) != 0 {
+                    bvh.intersect(ray)
+                } else {
+                    None
+                };
+                assert_eq!(found & (1 << l) != 0, want.is_some(), "lane {l} of {lanes:#b}");
+                assert_eq!(
+                    hits[l].map(|h: Hit| (h.prim, h.t.to_bits(), h.b1.to_bits(), h.b2.to_bits())),
+                    want.map(|h| (h.prim, h.t.to_bits(), h.b1.to_bits(), h.b2.to_bits())),
+                    "lane {l} of {lanes:#b}"
+                );
+                let bound = want.map_or(ray.t_max, |h| h.t);
+                assert_eq!(closest[l].to_bits(), bound.to_bits(), "lane {l} of {lanes:#b}");
+                hit += usize::from(want.is_some() && lanes.count_ones() < 3);
+            }
+        }
+    }
+    assert!(hit > 40, "{hit} hits of sparse packets");
+}
