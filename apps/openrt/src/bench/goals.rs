@@ -275,23 +275,6 @@ fn default_accel_target(results: &Results) -> Target {
 mod tests {
     use super::*;
 
-    fn frame(scene: &str, backend: &'static str, threads: usize, render_ms: f64) -> Row {
-        Row {
-            scene: scene.into(),
-            mode: "Whitted",
-            backend,
-            threads,
-            commit_ms: 0.0,
-            toplevel_ms: 0.0,
-            fast_ms: 0.0,
-            promotions: 0,
-            render_ms,
-            rays: 0.0,
-            triangles: 0,
-            instances: 0,
-        }
-    }
-
     /// Rows pair by scene, mode and threads; ties count for the default;
     /// other backends and unpaired rows are not counted.
     #[test]
@@ -299,20 +282,20 @@ mod tests {
         let (d, o) = (packets_label(Accel::default()), packets_label(Accel::Bvh));
         assert_eq!(d, "kd", "the test names the default");
         let rows = vec![
-            frame("a", d, 1, 10.0),
-            frame("a", o, 1, 12.0),
-            frame("a", d, 2, 10.0),
-            frame("a", o, 2, 10.0),
-            frame("b", d, 1, 10.0),
-            frame("b", o, 1, 9.0),
-            frame("c", d, 1, 1.0),
-            frame("c", "embree-packet", 1, 100.0),
+            Row::sample("a", d, 1, 10.0),
+            Row::sample("a", o, 1, 12.0),
+            Row::sample("a", d, 2, 10.0),
+            Row::sample("a", o, 2, 10.0),
+            Row::sample("b", d, 1, 10.0),
+            Row::sample("b", o, 1, 9.0),
+            Row::sample("c", d, 1, 1.0),
+            Row::sample("c", "embree-packet", 1, 100.0),
         ];
         let share = default_accel_share(&rows).expect("three pairs");
         assert!((share - 200.0 / 3.0).abs() < 1e-9, "{share}");
         assert_eq!(default_accel_share(&rows[6..]), None);
         let results = Results {
-            frames: vec![frame("b", d, 1, 10.0), frame("b", o, 1, 9.0)],
+            frames: vec![Row::sample("b", d, 1, 10.0), Row::sample("b", o, 1, 9.0)],
             ..Results::default()
         };
         let t = default_accel_target(&results);

@@ -624,18 +624,9 @@ mod tests {
 
     fn row(backend: &'static str, threads: usize, render_ms: f64) -> Row {
         Row {
-            scene: "kitchen".into(),
-            mode: "Whitted",
-            backend,
-            threads,
-            commit_ms: 0.0,
-            toplevel_ms: 0.0,
-            fast_ms: 0.0,
-            promotions: 0,
-            render_ms,
-            rays: 0.0,
             triangles: 110_520,
             instances: 6,
+            ..Row::sample("kitchen", backend, threads, render_ms)
         }
     }
 

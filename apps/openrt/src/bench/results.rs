@@ -18,6 +18,25 @@ pub(super) struct Row {
 }
 
 impl Row {
+    /// A row of the tests: `render_ms` on `threads`, nothing else spent.
+    #[cfg(test)]
+    pub(super) fn sample(scene: &str, backend: &'static str, threads: usize, render_ms: f64) -> Self {
+        Self {
+            scene: scene.into(),
+            mode: "Whitted",
+            backend,
+            threads,
+            commit_ms: 0.0,
+            toplevel_ms: 0.0,
+            fast_ms: 0.0,
+            promotions: 0,
+            render_ms,
+            rays: 0.0,
+            triangles: 0,
+            instances: 0,
+        }
+    }
+
     /// Frames per second: 1000 / (commit + render).
     pub(super) fn fps(&self) -> f64 {
         1000.0 / (self.commit_ms + self.render_ms)
