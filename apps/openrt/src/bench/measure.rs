@@ -1099,13 +1099,21 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
     })
 }
 
+/// A backend's frames of one mode in the phase table: (frame ms, phases)
+/// with the clocks on, frame ms with them off.
+type PhaseSamples = (Vec<(f64, openrt_core::PhaseTimes)>, Vec<f64>);
+
 /// The middle frame of `name` split into phases, one thread: each mode
 /// through the default backend over kd-trees and over BVHs, single rays,
 /// and Embree's packets (builds with `--features embree`). Each is rendered
-/// three times with the phase clocks on and three times off, alternating;
-/// the median timed frame's phases are reported.
+/// three times with the phase clocks on and three times off, alternating,
+/// in rounds that take every backend once (so that the machine's slow
+/// phases fall on all alike); the median timed frame's phases are reported.
 fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
-    let mut out = Vec::new();
+    const ROUNDS: usize = 3;
+    let modes = [(RenderMode::GlLike, 0), (RenderMode::Whitted, 3)];
+    // A player per structure, committed at the middle frame.
+    let mut players = Vec::new();
     for accel in [Accel::Kd, Accel::Bvh] {
         let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
         player.ctx_mut().set_accel(accel);
@@ -1113,43 +1121,70 @@ fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
         let t = player.time_of(player.frames() / 2);
         player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
         player.set_time(t).map_err(|e| e.to_string())?;
-        let scene = player.ctx().scene();
-        let (env, cam) = (player.env(), player.camera(t));
+        players.push((accel, player, t));
+    }
+    // Every (structure, backend, mode) of the table, warmed up (a peer
+    // builds its scene on its first frame).
+    let mut runs = Vec::new();
+    for (p, (accel, player, t)) in players.iter_mut().enumerate() {
         let backends: Vec<Backend> = Backend::ALL
             .iter()
             .copied()
-            .filter(|&b| match accel {
+            .filter(|&b| match *accel {
                 Accel::Kd => b.name() != "embree",
                 Accel::Bvh => b == Backend::Kd,
             })
             .collect();
+        let (scene, env, cam) = (player.ctx().scene(), player.env(), player.camera(*t));
         for backend in backends {
             let mut r = crate::new_renderer(player.ctx_mut().pool().map_err(|e| e.to_string())?);
             r.set_backend(backend);
-            for (mode, depth) in [(RenderMode::GlLike, 0), (RenderMode::Whitted, 3)] {
-                let s = settings(o, mode, depth);
-                // Warm-up (a peer builds its scene on its first frame).
-                r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?;
-                let (mut timed, mut untimed) = (Vec::new(), Vec::new());
-                for _ in 0..3 {
-                    r.set_phase_timing(true);
-                    let (_, st) = r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?;
-                    timed.push((st.render_ms, st.phases.unwrap_or_default()));
-                    r.set_phase_timing(false);
-                    untimed.push(r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?.1.render_ms);
-                }
-                timed.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let (timed_ms, phases) = timed[timed.len() / 2];
-                out.push(PhaseRow {
-                    scene: name.to_string(),
-                    mode: mode_name(mode),
-                    backend: label(accel, backend),
-                    timed_ms,
-                    untimed_ms: median(untimed),
-                    phases,
-                    pixels: u64::from(s.width) * u64::from(s.height),
-                });
+            for (mode, depth) in modes {
+                r.render(&scene, &env, &cam, &settings(o, mode, depth))
+                    .map_err(|e| e.to_string())?;
             }
+            runs.push((p, *accel, backend, r));
+        }
+    }
+    // The timed frames in rounds, every run once a round (the order
+    // reversed every other round), so that the machine's slow phases fall
+    // on all backends alike; each timed frame beside an untimed one.
+    let mut samples: Vec<[PhaseSamples; 2]> = vec![Default::default(); runs.len()];
+    for round in 0..ROUNDS {
+        for k in 0..runs.len() {
+            let i = if round % 2 == 0 { k } else { runs.len() - 1 - k };
+            let (p, _, _, r) = &mut runs[i];
+            let (_, player, t) = &players[*p];
+            let (scene, env, cam) = (player.ctx().scene(), player.env(), player.camera(*t));
+            for (m, (mode, depth)) in modes.into_iter().enumerate() {
+                let s = settings(o, mode, depth);
+                r.set_phase_timing(true);
+                let (_, st) = r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?;
+                samples[i][m].0.push((st.render_ms, st.phases.unwrap_or_default()));
+                r.set_phase_timing(false);
+                samples[i][m]
+                    .1
+                    .push(r.render(&scene, &env, &cam, &s).map_err(|e| e.to_string())?.1.render_ms);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for ((_, accel, backend, _), mut sample) in runs.iter().zip(samples) {
+        for (m, (mode, depth)) in modes.into_iter().enumerate() {
+            let s = settings(o, mode, depth);
+            let (timed, untimed) = std::mem::take(&mut sample[m]);
+            let mut timed = timed;
+            timed.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let (timed_ms, phases) = timed[timed.len() / 2];
+            out.push(PhaseRow {
+                scene: name.to_string(),
+                mode: mode_name(mode),
+                backend: label(*accel, *backend),
+                timed_ms,
+                untimed_ms: median(untimed),
+                phases,
+                pixels: u64::from(s.width) * u64::from(s.height),
+            });
         }
     }
     Ok(out)
