@@ -149,13 +149,13 @@ struct Quality {
     /// Samples per pixel (low-discrepancy positions, the same for any thread count).
     #[arg(long, default_value_t = 1)]
     spp: u32,
-    /// Traversal backend: `kd` (ray packets), `kd-single` (one ray at a time), `bvh` and
-    /// `bvh-single` (the same with `--accel bvh`); builds with `--features embree` add
-    /// `embree` and `embree-packet`.
-    #[arg(long, default_value = "kd")]
+    /// Traversal backend: `packets` (ray packets) or `single` (one ray at a time) over the
+    /// objects' structure (`--accel`); `kd`, `kd-single`, `bvh` and `bvh-single` name the
+    /// structure too; builds with `--features embree` add `embree` and `embree-packet`.
+    #[arg(long, default_value = "packets")]
     backend: BackendChoice,
-    /// Object structure: `kd` (the paper's kd-trees) or `bvh` (wide BVHs: 4-wide packets, 8-wide single rays on AVX2); the same images
-    /// (default: the scene's `accel`, else `kd`).
+    /// Object structure: `bvh` (wide BVHs: 4-wide packets, 8-wide single rays on AVX2) or `kd`
+    /// (the paper's kd-trees); the same images (default: the scene's `accel`, else `bvh`).
     #[arg(long)]
     accel: Option<Accel>,
     /// Top level over the instances: `auto` (the paper's BSP, a BVH from 64 instances), `bsp` or `bvh`;
@@ -333,8 +333,8 @@ fn print_warnings(player: &ScenePlayer) {
     }
 }
 
-/// `--backend`: a traversal backend, and for `bvh` / `bvh-single` the
-/// structure under the objects too (the `kd` backends over BVHs).
+/// `--backend`: a traversal backend, and for `kd`, `kd-single`, `bvh` and
+/// `bvh-single` the structure under the objects too.
 #[derive(Clone, Copy, Debug)]
 struct BackendChoice {
     backend: Backend,
@@ -344,10 +344,17 @@ struct BackendChoice {
 impl std::str::FromStr for BackendChoice {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        let (backend, accel) = match s {
-            "bvh" => (Backend::Kd, Some(Accel::Bvh)),
-            "bvh-single" => (Backend::KdSingle, Some(Accel::Bvh)),
-            _ => (s.parse::<Backend>().map_err(|e| format!("{e}, bvh, bvh-single"))?, None),
+        let labelled = [Accel::Kd, Accel::Bvh]
+            .into_iter()
+            .flat_map(|a| [Backend::Packets, Backend::Single].map(|b| (b, a)))
+            .find(|&(b, a)| b.label(a) == s);
+        let (backend, accel) = match labelled {
+            Some((b, a)) => (b, Some(a)),
+            None => (
+                s.parse::<Backend>()
+                    .map_err(|e| format!("{e}, kd, kd-single, bvh, bvh-single"))?,
+                None,
+            ),
         };
         Ok(Self { backend, accel })
     }

@@ -40,7 +40,7 @@ fn embree_frames_match_the_kd_frames() {
     for name in ["room", "slab", "textured", "animated"] {
         let mut p = ScenePlayer::open(Some(&repo.join(format!("scenes/{name}.ron")))).unwrap();
         // One pool per backend for both frames, as an application keeps it.
-        let [kd_r, one_r, packet_r] = [Backend::Kd, Backend::Embree, Backend::EmbreePacket].map(|b| {
+        let [kd_r, one_r, packet_r] = [Backend::Packets, Backend::Embree, Backend::EmbreePacket].map(|b| {
             let mut r = Renderer::new(2).expect("a render pool");
             r.set_backend(b);
             r

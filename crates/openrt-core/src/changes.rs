@@ -643,6 +643,8 @@ mod tests {
     #[test]
     fn promotions_deletions_and_removals_reach_the_replica() {
         let mut m = Context::new();
+        // Promotions replace a kd-tree's fast build (a BVH has one builder).
+        m.set_accel(crate::Accel::Kd);
         m.set_promote_after(Some(1));
         let (a, b) = (m.gen_object(), m.gen_object());
         define(&mut m, a, 1);
@@ -654,6 +656,7 @@ mod tests {
         // Recording starts after a commit: the first set holds everything.
         m.record_changes();
         let mut r = Context::new();
+        r.set_accel(crate::Accel::Kd);
         define(&mut m, a, 3); // redefined: a fast tree
         let first = {
             m.commit().unwrap();

@@ -590,6 +590,8 @@ mod tests {
     #[test]
     fn a_failed_promotion_is_reported_once_and_not_retried() {
         let mut ctx = Context::new();
+        // Promotions replace a kd-tree's fast build (a BVH has one builder).
+        ctx.set_accel(crate::Accel::Kd);
         ctx.set_promote_after(Some(1));
         let a = ctx.gen_object();
         tri(&mut ctx, a, 0.0);

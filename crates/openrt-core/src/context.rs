@@ -301,7 +301,7 @@ impl Context {
         self.refit = refit;
     }
 
-    /// The structure built over objects: kd-trees (the default) or BVHs.
+    /// The structure built over objects: BVHs (the default) or kd-trees.
     /// Objects already built are rebuilt with the new structure at the
     /// next commit (each with the builder it had); the images are the same
     /// bytes either way.

@@ -40,9 +40,12 @@ pub struct ObjectMesh {
 pub enum Accel {
     /// The paper's kd-tree (SAH for static and affine objects, the fast
     /// builder and its refit for unstructured motion).
-    #[default]
     Kd,
-    /// A wide BVH (binned SAH, 4-wide nodes and an 8-wide copy for single rays on AVX2; refitted for unstructured motion).
+    /// A wide BVH (binned SAH, 4-wide nodes and an 8-wide copy for single
+    /// rays on AVX2; refitted for unstructured motion). The default: the
+    /// bench's frames are faster with it on most scenes
+    /// (docs/BENCHMARKS.md, "Targets").
+    #[default]
     Bvh,
 }
 

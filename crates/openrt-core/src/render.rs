@@ -25,16 +25,18 @@ use crate::{
 pub const TILE: u32 = 16;
 
 /// How rays find their hits; the shading, the rays and the image are the
-/// same for every backend (byte for byte between the kd backends, tested).
+/// same for every backend (byte for byte between the packet and single-ray
+/// backends over either object structure, tested).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum Backend {
-    /// Kd-trees through both levels, coherent rays in packets
+    /// This crate's traversal through both levels (the objects' structure:
+    /// kd-trees or BVHs, [`Accel`](crate::Accel)), coherent rays in packets
     /// ([`Scene::intersect_packet`]): primary rays in blocks of pixels and,
     /// per light, their shadow rays.
     #[default]
-    Kd,
-    /// Kd-trees through both levels, one ray at a time.
-    KdSingle,
+    Packets,
+    /// This crate's traversal through both levels, one ray at a time.
+    Single,
     /// Embree 3, one ray at a time (rtcIntersect1/rtcOccluded1), on the
     /// same rays and shading (feature `embree`).
     #[cfg(feature = "embree")]
@@ -46,12 +48,13 @@ pub enum Backend {
 }
 
 impl Backend {
-    /// The name used on command lines (`kd`, `kd-single`).
+    /// The name used on command lines (`packets`, `single`, `embree`,
+    /// `embree-packet`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
-            Self::Kd => "kd",
-            Self::KdSingle => "kd-single",
+            Self::Packets => "packets",
+            Self::Single => "single",
             #[cfg(feature = "embree")]
             Self::Embree => "embree",
             #[cfg(feature = "embree")]
@@ -59,12 +62,27 @@ impl Backend {
         }
     }
 
+    /// The name of this backend over objects built with `accel`: `kd`,
+    /// `kd-single`, `bvh` or `bvh-single` for this crate's traversal, the
+    /// peer's own name for Embree (which builds its own structure).
+    #[must_use]
+    pub fn label(self, accel: crate::Accel) -> &'static str {
+        match (self, accel) {
+            (Self::Packets, crate::Accel::Kd) => "kd",
+            (Self::Single, crate::Accel::Kd) => "kd-single",
+            (Self::Packets, crate::Accel::Bvh) => "bvh",
+            (Self::Single, crate::Accel::Bvh) => "bvh-single",
+            #[cfg(feature = "embree")]
+            (b, _) => b.name(),
+        }
+    }
+
     /// `true` for the backends that trace coherent rays in packets.
     #[must_use]
     pub fn packets(self) -> bool {
         match self {
-            Self::Kd => true,
-            Self::KdSingle => false,
+            Self::Packets => true,
+            Self::Single => false,
             #[cfg(feature = "embree")]
             Self::Embree => false,
             #[cfg(feature = "embree")]
@@ -74,10 +92,10 @@ impl Backend {
 
     /// Every backend of this build.
     #[cfg(not(feature = "embree"))]
-    pub const ALL: &[Self] = &[Self::Kd, Self::KdSingle];
+    pub const ALL: &[Self] = &[Self::Packets, Self::Single];
     /// Every backend of this build.
     #[cfg(feature = "embree")]
-    pub const ALL: &[Self] = &[Self::Kd, Self::KdSingle, Self::Embree, Self::EmbreePacket];
+    pub const ALL: &[Self] = &[Self::Packets, Self::Single, Self::Embree, Self::EmbreePacket];
 }
 
 impl std::str::FromStr for Backend {
@@ -244,7 +262,7 @@ impl Renderer {
         }
     }
 
-    /// Chooses how rays find their hits (default [`Backend::Kd`]).
+    /// Chooses how rays find their hits (default [`Backend::Packets`]).
     pub fn set_backend(&mut self, backend: Backend) {
         self.backend = backend;
     }
@@ -255,7 +273,7 @@ impl Renderer {
         self.backend
     }
 
-    /// Chooses the packet width of [`Backend::Kd`] (default: the CPU's,
+    /// Chooses the packet width of [`Backend::Packets`] (default: the CPU's,
     /// [`PacketWidth::detect`]); images do not depend on it.
     pub fn set_packet_width(&mut self, width: PacketWidth) {
         self.width = width;
@@ -522,7 +540,7 @@ pub fn assemble_into<'a>(
 
 fn render_tiles(job: &FrameJob<'_>) -> Vec<TileResult> {
     match job.backend {
-        Backend::Kd | Backend::KdSingle => tiles(job, job.scene),
+        Backend::Packets | Backend::Single => tiles(job, job.scene),
         #[cfg(feature = "embree")]
         Backend::Embree | Backend::EmbreePacket => {
             let guard = job.embree.read().unwrap_or_else(std::sync::PoisonError::into_inner);

@@ -19,6 +19,8 @@ fn define_sphere(ctx: &mut Context, id: openrt_core::ObjectId, n: usize, wobble:
 #[test]
 fn each_object_pays_only_for_what_changed_and_settled_objects_are_promoted() {
     let mut ctx = Context::new();
+    // Promotions replace a kd-tree's fast build (a BVH has one builder).
+    ctx.set_accel(openrt_core::Accel::Kd);
     ctx.set_promote_after(Some(3));
     let still = ctx.gen_object();
     let moving = ctx.gen_object();

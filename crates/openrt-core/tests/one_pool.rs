@@ -42,6 +42,8 @@ fn settled_threads() -> usize {
 #[test]
 fn one_pool_commits_renders_and_promotes_without_a_thread_per_frame() {
     let mut ctx = Context::new();
+    // Promotions replace a kd-tree's fast build (a BVH has one builder).
+    ctx.set_accel(openrt_core::Accel::Kd);
     let cam = Camera {
         from: Vec3::new(0.0, 0.5, 4.0),
         at: Vec3::ZERO,

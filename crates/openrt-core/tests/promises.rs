@@ -263,7 +263,7 @@ fn render_limits_are_errors_and_the_deepest_recursion_fits() {
     }
     // The deepest recursion: every ray bounces MAX_SHADE_DEPTH times, on
     // the render threads' stacks, in packets and one by one.
-    for backend in [openrt_core::Backend::Kd, openrt_core::Backend::KdSingle] {
+    for backend in [openrt_core::Backend::Packets, openrt_core::Backend::Single] {
         let mut r = Renderer::new(2).unwrap();
         r.set_backend(backend);
         let (img, stats) = r

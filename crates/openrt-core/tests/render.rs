@@ -552,7 +552,7 @@ fn emission_is_added_unlit_and_the_same_on_every_path() {
         };
         let mut images = Vec::new();
         for mode in [RenderMode::GlLike, RenderMode::Whitted] {
-            for backend in [openrt_core::Backend::Kd, openrt_core::Backend::KdSingle] {
+            for backend in [openrt_core::Backend::Packets, openrt_core::Backend::Single] {
                 let mut r = Renderer::new(1).unwrap();
                 r.set_backend(backend);
                 let s = RenderSettings {
@@ -563,7 +563,7 @@ fn emission_is_added_unlit_and_the_same_on_every_path() {
                 };
                 let (img, _) = r.render(&ctx.scene(), &env, &cam, &s).unwrap();
                 images.push(img.to_rgb8());
-                if backend == openrt_core::Backend::Kd {
+                if backend == openrt_core::Backend::Packets {
                     pixels.push(img.pixels[8 * 16 + 8]);
                 }
             }
@@ -766,7 +766,7 @@ fn mixed_lanes(plain: bool, mode: RenderMode) {
             };
             r.render(&scene, &env, &cam, &s).unwrap().0.to_rgb8()
         };
-        let want = image(Backend::KdSingle, PacketWidth::W4);
+        let want = image(Backend::Single, PacketWidth::W4);
         let distinct: std::collections::HashSet<&[u8]> = want.chunks(3).collect();
         assert!(
             distinct.len() > 200,
@@ -775,7 +775,7 @@ fn mixed_lanes(plain: bool, mode: RenderMode) {
         );
         for width in [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16] {
             assert!(
-                image(Backend::Kd, width) == want,
+                image(Backend::Packets, width) == want,
                 "{filter:?}, {width:?}: packets differ from single rays"
             );
         }
@@ -857,7 +857,7 @@ fn bounces_below_the_least_weight_are_not_traced() {
     use openrt_core::{Backend, MIN_RAY_WEIGHT};
     const { assert!(0.1f32 * 0.1 * 0.1 < MIN_RAY_WEIGHT && 0.2f32 * 0.2 * 0.2 >= MIN_RAY_WEIGHT) };
     const { assert!(0.1f32 * 0.1 >= MIN_RAY_WEIGHT, "the second bounce must still be traced") };
-    let pruned = [Backend::Kd, Backend::KdSingle].map(|backend| {
+    let pruned = [Backend::Packets, Backend::Single].map(|backend| {
         let (two, rays_two) = hall_of_mirrors(0.1, 2, backend);
         let deep = [3, 5].map(|depth| {
             let (deep, rays_deep) = hall_of_mirrors(0.1, depth, backend);

@@ -35,7 +35,7 @@ fn main() {
             let mut r = Renderer::with_pool(ctx.pool().unwrap());
             r.set_packet_width(openrt_accel::PacketWidth::detect());
             if single {
-                r.set_backend(openrt_core::Backend::KdSingle);
+                r.set_backend(openrt_core::Backend::Single);
             }
             p.set_time(p.time_of(0)).unwrap();
             (p, r)

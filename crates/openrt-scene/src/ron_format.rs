@@ -59,7 +59,7 @@ pub struct SceneFile {
     /// (v2) Procedural content added to the scene.
     #[serde(default)]
     pub generators: Vec<GeneratorDesc>,
-    /// (v2) The structure under every object: `Kd` (default) or `Bvh`
+    /// (v2) The structure under every object: `Bvh` (default) or `Kd`
     /// (the same images; `--accel` overrides it).
     #[serde(default)]
     pub accel: openrt_core::Accel,

@@ -7,7 +7,7 @@
 //!   every packet width.
 //! - Shadow rays with last-occluder hints (kept as the renderer keeps them,
 //!   and every leaf of the scene as the hint) answer as the plain queries.
-//! - `Backend::Kd` and `Backend::KdSingle` render the same bytes for every
+//! - `Backend::Packets` and `Backend::Single` render the same bytes for every
 //!   shipped small scene, in both modes, on 1 and 2 threads and at every
 //!   packet width; the BART kitchen, museum and robots frames too, when the data is
 //!   there (see `bart.rs` for how it is found).
@@ -257,10 +257,10 @@ fn same_bytes(name: &str, player: &mut ScenePlayer, frame: u32) {
     let t = player.time_of(frame);
     player.set_time(t).unwrap();
     for mode in [RenderMode::GlLike, RenderMode::Whitted] {
-        let want = render(player, t, mode, 1, Backend::KdSingle, PacketWidth::W4);
+        let want = render(player, t, mode, 1, Backend::Single, PacketWidth::W4);
         for threads in [1, 2] {
             for w in WIDTHS {
-                let got = render(player, t, mode, threads, Backend::Kd, w);
+                let got = render(player, t, mode, threads, Backend::Packets, w);
                 assert!(
                     got == want,
                     "{name} frame {frame} {mode:?}: kd ({w:?}, {threads} threads) differs"
@@ -282,7 +282,7 @@ fn same_bytes(name: &str, player: &mut ScenePlayer, frame: u32) {
                 .iter()
                 .all(|i| i.geometry.tree.accel() == Accel::Bvh)
         );
-        for backend in [Backend::KdSingle, Backend::Kd] {
+        for backend in [Backend::Single, Backend::Packets] {
             let got = render(player, t, mode, 2, backend, PacketWidth::W8);
             assert!(
                 got == want,
@@ -301,7 +301,7 @@ fn same_bytes(name: &str, player: &mut ScenePlayer, frame: u32) {
         player.ctx_mut().set_top_level(other);
         player.set_time(t).unwrap();
         assert_eq!(player.ctx().scene().top_level(), other);
-        for backend in [Backend::KdSingle, Backend::Kd] {
+        for backend in [Backend::Single, Backend::Packets] {
             let got = render(player, t, mode, 2, backend, PacketWidth::W8);
             assert!(
                 got == want,
@@ -366,7 +366,7 @@ fn backends_parse_from_their_names() {
         assert_eq!(b.name().parse::<Backend>(), Ok(b));
     }
     let e = "embree-x".parse::<Backend>().unwrap_err();
-    assert!(e.contains("kd-single"), "{e}");
+    assert!(e.contains("packets, single"), "{e}");
 }
 
 /// Several samples per pixel and every texture filter: packets and single
@@ -394,10 +394,10 @@ fn samples_and_filters_render_the_same_bytes_on_both_kd_backends() {
     let mut seen = Vec::new();
     for filter in openrt_core::TextureFilter::ALL {
         for spp in [1, 4] {
-            let want = image(Backend::KdSingle, 1, spp, filter);
-            assert_eq!(image(Backend::Kd, 2, spp, filter), want, "{filter:?}, {spp} spp");
+            let want = image(Backend::Single, 1, spp, filter);
+            assert_eq!(image(Backend::Packets, 2, spp, filter), want, "{filter:?}, {spp} spp");
             assert_eq!(
-                image(Backend::KdSingle, 2, spp, filter),
+                image(Backend::Single, 2, spp, filter),
                 want,
                 "{filter:?}, {spp} spp, 2 threads"
             );

@@ -12,7 +12,7 @@ fn timed_frames_have_the_untimed_bytes_and_every_phase() {
     for scene in ["room.ron", "textured.ron"] {
         let mut player = ScenePlayer::open(Some(&root.join(scene))).unwrap();
         player.set_time(0.0).unwrap();
-        for backend in [Backend::Kd, Backend::KdSingle] {
+        for backend in [Backend::Packets, Backend::Single] {
             for mode in [RenderMode::GlLike, RenderMode::Whitted] {
                 let mut r = Renderer::new(2).unwrap();
                 r.set_backend(backend);

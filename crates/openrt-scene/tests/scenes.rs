@@ -221,15 +221,15 @@ fn malformed_scenes_give_file_line_and_column() {
     assert!(e.to_string().contains("/no/such/scene.ron"));
 }
 
-/// `accel: Bvh` in a scene file puts BVHs under its objects, and the image
-/// is the kd-tree scene's, byte for byte.
+/// `accel: Kd` in a scene file puts kd-trees under its objects (BVHs by
+/// default), and the image is the BVH scene's, byte for byte.
 #[test]
 fn a_scene_file_chooses_its_structure() {
     let text = std::fs::read_to_string(repo().join("scenes/room.ron")).unwrap();
-    let kd = load_ron_str(&text, &repo().join("scenes/room.ron")).unwrap();
+    let bvh = load_ron_str(&text, &repo().join("scenes/room.ron")).unwrap();
     let end = text.rfind(')').expect("a RON struct");
-    let with_bvh = format!("{}, accel: Bvh)", text[..end].trim_end().trim_end_matches(','));
-    let bvh = load_ron_str(&with_bvh, &repo().join("scenes/room.ron")).unwrap();
+    let with_kd = format!("{}, accel: Kd)", text[..end].trim_end().trim_end_matches(','));
+    let kd = load_ron_str(&with_kd, &repo().join("scenes/room.ron")).unwrap();
     let accels = |s: &openrt_scene::LoadedScene| -> Vec<openrt_core::Accel> {
         s.ctx
             .scene()
@@ -254,7 +254,7 @@ fn a_scene_file_chooses_its_structure() {
             .0
             .to_rgb8()
     };
-    assert!(img(&kd) == img(&bvh), "the BVH scene renders other bytes");
+    assert!(img(&kd) == img(&bvh), "the kd scene renders other bytes");
     let e = err(&format!(
         "{}, accel: Octree)",
         text[..end].trim_end().trim_end_matches(',')

@@ -1,7 +1,7 @@
 //! The goals the report judges and the paper's figures, as data in one
 //! place; `targets` turns a run's results into verdicts.
 
-use openrt_core::Accel;
+use openrt_core::{Accel, Backend};
 
 use super::results::{Results, Row};
 
@@ -227,15 +227,6 @@ pub(super) fn targets(results: &Results, default_backend: &str) -> Vec<Target> {
     out
 }
 
-/// The packets' rows of an object structure in the frames table: `kd`'s
-/// backend is named `kd`, the BVH's `bvh` (`measure.rs`'s `label`).
-fn packets_label(accel: Accel) -> &'static str {
-    match accel {
-        Accel::Kd => "kd",
-        Accel::Bvh => "bvh",
-    }
-}
-
 /// The share of the frames table's rows (scene, mode, threads) on which
 /// the default object structure's packets give at least the other's frame
 /// rate (both structures played frame by frame in turn, `measure.rs`).
@@ -246,9 +237,12 @@ fn default_accel_share(frames: &[Row]) -> Option<f64> {
         Accel::Bvh => Accel::Kd,
     };
     let (mut rows, mut wins) = (0u32, 0u32);
-    for d in frames.iter().filter(|r| r.backend == packets_label(default)) {
+    for d in frames.iter().filter(|r| r.backend == Backend::Packets.label(default)) {
         if let Some(o) = frames.iter().find(|o| {
-            o.backend == packets_label(other) && o.scene == d.scene && o.mode == d.mode && o.threads == d.threads
+            o.backend == Backend::Packets.label(other)
+                && o.scene == d.scene
+                && o.mode == d.mode
+                && o.threads == d.threads
         }) {
             rows += 1;
             wins += u32::from(d.fps() >= o.fps());
@@ -279,8 +273,11 @@ mod tests {
     /// other backends and unpaired rows are not counted.
     #[test]
     fn the_default_structure_share_counts_paired_rows() {
-        let (d, o) = (packets_label(Accel::default()), packets_label(Accel::Bvh));
-        assert_eq!(d, "kd", "the test names the default");
+        let (d, o) = (
+            Backend::Packets.label(Accel::default()),
+            Backend::Packets.label(Accel::Kd),
+        );
+        assert_eq!(d, "bvh", "the test names the default");
         let rows = vec![
             Row::sample("a", d, 1, 10.0),
             Row::sample("a", o, 1, 12.0),

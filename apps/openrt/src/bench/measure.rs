@@ -62,16 +62,6 @@ fn image_diff(kd: &Image, img: &Image) -> (bool, f64) {
     (a == b, off as f64 / (a.len() / 3).max(1) as f64)
 }
 
-/// The name of a backend's rows: with BVHs under the instances, the kd
-/// backends' packets and single rays are `bvh` and `bvh-single`.
-fn label(accel: Accel, b: Backend) -> &'static str {
-    match (accel, b) {
-        (Accel::Bvh, Backend::Kd) => "bvh",
-        (Accel::Bvh, Backend::KdSingle) => "bvh-single",
-        _ => b.name(),
-    }
-}
-
 /// One structure's side of [`measure_scene`]: its own player (the scene
 /// committed with `accel` under the instances), renderers and samples.
 struct Side {
@@ -98,9 +88,9 @@ impl Side {
             .flat_map(|(t, pool)| {
                 Backend::ALL
                     .iter()
-                    .filter(move |&&b| accel == Accel::Kd || matches!(b, Backend::Kd | Backend::KdSingle))
+                    .filter(move |&&b| accel == Accel::Kd || matches!(b, Backend::Packets | Backend::Single))
                     // The device run: packets only (the default backend and Embree's).
-                    .filter(move |&&b| !o.device || matches!(b.name(), "kd" | "embree-packet"))
+                    .filter(move |&&b| !o.device || b.packets())
                     .map(move |&b| {
                         let mut r = crate::new_renderer(pool.clone());
                         r.set_backend(b);
@@ -173,14 +163,14 @@ impl Side {
                     .render_into(&scene, &env, &cam, &settings(o, mode, 3), img)
                     .map_err(|e| e.to_string())?;
                 if first && threads == o.threads[0] {
-                    if self.accel == Accel::Kd && r.backend() == Backend::Kd {
+                    if self.accel == Accel::Kd && r.backend() == Backend::Packets {
                         reference.push(img.clone());
                     } else if let Some(kd) = reference.get(mi) {
                         let (identical, off_share) = image_diff(kd, img);
                         diffs.push(ImageDiff {
                             scene: name.to_string(),
                             mode: ["GL-like", "Whitted"][mi],
-                            backend: label(self.accel, r.backend()),
+                            backend: r.backend().label(self.accel),
                             identical,
                             off_share,
                         });
@@ -206,7 +196,7 @@ impl Side {
                 rows.push(Row {
                     scene: name.to_string(),
                     mode,
-                    backend: label(self.accel, r.backend()),
+                    backend: r.backend().label(self.accel),
                     threads: *threads,
                     commit_ms: median(a.0),
                     toplevel_ms: median(a.1),
@@ -1132,7 +1122,7 @@ fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
             .copied()
             .filter(|&b| match *accel {
                 Accel::Kd => b.name() != "embree",
-                Accel::Bvh => b == Backend::Kd,
+                Accel::Bvh => b == Backend::Packets,
             })
             .collect();
         let (scene, env, cam) = (player.ctx().scene(), player.env(), player.camera(*t));
@@ -1179,7 +1169,7 @@ fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
             out.push(PhaseRow {
                 scene: name.to_string(),
                 mode: mode_name(mode),
-                backend: label(*accel, *backend),
+                backend: backend.label(*accel),
                 timed_ms,
                 untimed_ms: median(untimed),
                 phases,
