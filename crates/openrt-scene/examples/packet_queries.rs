@@ -3,11 +3,12 @@
 //! 16-lane pixel blocks (closest hit), or the shadow rays from their hits
 //! towards each light (`shadow`: any hit, a packet per block and light,
 //! each light's last occluder tried first as in a frame),
-//! through the packet queries or one by one (`single`), with the kd-trees or
-//! the BVHs (`bvh`) under the instances; no shading. The
+//! through the packet queries or one by one (`single`), with the scene's
+//! structure under the instances (BVHs unless it says otherwise), or
+//! kd-trees (`kd`) or BVHs (`bvh`); no shading. The
 //! rays are those of `openrt bench`'s query table. Prints the best pass.
 //!
-//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single] [bvh]`
+//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single] [kd|bvh]`
 use glam::Vec3;
 use openrt_accel::Ray;
 use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
@@ -20,8 +21,10 @@ fn main() {
     let single = args.iter().any(|s| s == "single");
     let shadow = args.iter().any(|s| s == "shadow");
     let mut player = ScenePlayer::open(Some(&path)).unwrap();
-    if args.iter().any(|s| s == "bvh") {
-        player.set_accel(openrt_core::Accel::Bvh).unwrap();
+    for (name, accel) in [("kd", openrt_core::Accel::Kd), ("bvh", openrt_core::Accel::Bvh)] {
+        if args.iter().any(|s| s == name) {
+            player.set_accel(accel).unwrap();
+        }
     }
     let t = player.time_of(player.frames() / 2);
     player.set_time(player.time_of(0)).unwrap();
