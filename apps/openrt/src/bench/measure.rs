@@ -62,6 +62,15 @@ fn image_diff(kd: &Image, img: &Image) -> (bool, f64) {
     (a == b, off as f64 / (a.len() / 3).max(1) as f64)
 }
 
+/// The bench scene `name` with `accel` under its objects, its first frame
+/// committed (the warm-up commit builds every tree).
+fn open_player(name: &str, accel: Accel) -> Result<ScenePlayer, String> {
+    let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+    player.ctx_mut().set_accel(accel);
+    player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
+    Ok(player)
+}
+
 /// One structure's side of [`measure_scene`]: its own player (the scene
 /// committed with `accel` under the instances), renderers and samples.
 struct Side {
@@ -79,10 +88,7 @@ impl Side {
     /// and makes a renderer per thread count and backend: every backend
     /// of the build with kd-trees, only those that traverse them with BVHs.
     fn open(o: &BenchOptions, name: &str, accel: Accel, pools: &[(usize, ThreadPool)]) -> Result<Self, String> {
-        let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
-        player.ctx_mut().set_accel(accel);
-        // Warm-up: the first commit builds every tree.
-        player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
+        let player = open_player(name, accel)?;
         let renderers: Vec<(usize, Renderer)> = pools
             .iter()
             .flat_map(|(t, pool)| {
@@ -272,9 +278,8 @@ fn measure_scene(
 /// first, as the renderer does), through `Scene::intersect`/`occluded_hinted`
 /// one by one and through the packet queries. Medians of 5 passes.
 fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
-    let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
+    let mut player = open_player(name, Accel::Kd)?;
     let t = player.time_of(player.frames() / 2);
-    player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
     player.set_time(t).map_err(|e| e.to_string())?;
     let scene = player.ctx().scene();
     // The same frame under each top level.
@@ -1105,11 +1110,9 @@ fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
     // A player per structure, committed at the middle frame.
     let mut players = Vec::new();
     for accel in [Accel::Kd, Accel::Bvh] {
-        let mut player = ScenePlayer::open(Some(&scene_path(name))).map_err(|e| e.to_string())?;
-        player.ctx_mut().set_accel(accel);
+        let mut player = open_player(name, accel)?;
         player.ctx_mut().set_threads(1).map_err(|e| e.to_string())?;
         let t = player.time_of(player.frames() / 2);
-        player.set_time(player.time_of(0)).map_err(|e| e.to_string())?;
         player.set_time(t).map_err(|e| e.to_string())?;
         players.push((accel, player, t));
     }
