@@ -757,7 +757,28 @@ impl StatsLines {
 
 #[cfg(test)]
 mod tests {
-    use super::frame_range;
+    use super::{Accel, Backend, BackendChoice, frame_range};
+
+    /// `--backend`: `packets` and `single` keep the scene's structure; the
+    /// labelled names choose it too; anything else is refused with the names.
+    #[test]
+    fn backend_names_choose_the_traversal_and_the_structure() {
+        let parse = |s: &str| s.parse::<BackendChoice>().map(|c| (c.backend, c.accel));
+        assert_eq!(parse("packets"), Ok((Backend::Packets, None)));
+        assert_eq!(parse("single"), Ok((Backend::Single, None)));
+        assert_eq!(parse("kd"), Ok((Backend::Packets, Some(Accel::Kd))));
+        assert_eq!(parse("kd-single"), Ok((Backend::Single, Some(Accel::Kd))));
+        assert_eq!(parse("bvh"), Ok((Backend::Packets, Some(Accel::Bvh))));
+        assert_eq!(parse("bvh-single"), Ok((Backend::Single, Some(Accel::Bvh))));
+        for &b in Backend::ALL {
+            assert_eq!(parse(b.name()).map(|c| c.0), Ok(b));
+        }
+        let e = parse("octree").unwrap_err();
+        assert!(
+            e.contains("packets") && e.contains("kd-single") && e.contains("bvh-single"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn frame_ranges_parse_and_are_checked() {

@@ -781,3 +781,29 @@ pub fn sample_offset(i: u32) -> (f32, f32) {
     let i = f64::from(i);
     ((0.5 + G1 * i).fract() as f32, (0.5 + G2 * i).fract() as f32)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Backend;
+    use crate::Accel;
+
+    /// Every (traversal, structure) pair of this crate has its own label;
+    /// Embree's backends keep their names whatever the structure.
+    #[test]
+    fn labels_name_the_traversal_and_the_structure() {
+        let ours: Vec<&str> = [Accel::Kd, Accel::Bvh]
+            .into_iter()
+            .flat_map(|a| [Backend::Packets, Backend::Single].map(|b| b.label(a)))
+            .collect();
+        assert_eq!(ours, ["kd", "kd-single", "bvh", "bvh-single"]);
+        for &b in Backend::ALL
+            .iter()
+            .filter(|b| !matches!(b, Backend::Packets | Backend::Single))
+        {
+            assert_eq!(b.label(Accel::Kd), b.name());
+            assert_eq!(b.label(Accel::Bvh), b.name());
+        }
+        assert_eq!(Backend::default(), Backend::Packets);
+        assert_eq!(Accel::default(), Accel::Bvh, "BVHs are the default structure");
+    }
+}
