@@ -473,7 +473,7 @@ impl ViewerApp {
         });
         ui.horizontal(|ui| {
             ui.label("objects");
-            for a in [Accel::Kd, Accel::Bvh] {
+            for a in Accel::ALL {
                 self.dirty |= ui.radio_value(&mut self.accel, a, a.name()).changed();
             }
         });

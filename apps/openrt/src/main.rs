@@ -344,11 +344,7 @@ struct BackendChoice {
 impl std::str::FromStr for BackendChoice {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        let labelled = [Accel::Kd, Accel::Bvh]
-            .into_iter()
-            .flat_map(|a| [Backend::Packets, Backend::Single].map(|b| (b, a)))
-            .find(|&(b, a)| b.label(a) == s);
-        let (backend, accel) = match labelled {
+        let (backend, accel) = match Backend::from_label(s) {
             Some((b, a)) => (b, Some(a)),
             None => (
                 s.parse::<Backend>()

@@ -42,14 +42,18 @@ pub enum Accel {
     /// builder and its refit for unstructured motion).
     Kd,
     /// A wide BVH (binned SAH, 4-wide nodes and an 8-wide copy for single
-    /// rays on AVX2; refitted for unstructured motion). The default: the
-    /// bench's frames are faster with it on most scenes
-    /// (docs/BENCHMARKS.md, "Targets").
+    /// rays on AVX2; refitted for unstructured motion). The default: its
+    /// frames are on par with the kd-trees' within the bench's swings, its
+    /// ray queries faster on most scenes and its refits of deforming meshes
+    /// several times cheaper (docs/BENCHMARKS.md).
     #[default]
     Bvh,
 }
 
 impl Accel {
+    /// Both structures.
+    pub const ALL: [Self; 2] = [Self::Kd, Self::Bvh];
+
     /// The name used by the CLI, RON scenes and the bench (`kd`, `bvh`).
     #[must_use]
     pub fn name(self) -> &'static str {

@@ -77,6 +77,16 @@ impl Backend {
         }
     }
 
+    /// The backend and structure that [`Backend::label`] names `label`
+    /// (`kd`, `kd-single`, `bvh`, `bvh-single`), if any.
+    #[must_use]
+    pub fn from_label(label: &str) -> Option<(Self, crate::Accel)> {
+        crate::Accel::ALL
+            .into_iter()
+            .flat_map(|a| [Self::Packets, Self::Single].map(|b| (b, a)))
+            .find(|&(b, a)| b.label(a) == label)
+    }
+
     /// `true` for the backends that trace coherent rays in packets.
     #[must_use]
     pub fn packets(self) -> bool {
@@ -791,11 +801,20 @@ mod tests {
     /// Embree's backends keep their names whatever the structure.
     #[test]
     fn labels_name_the_traversal_and_the_structure() {
-        let ours: Vec<&str> = [Accel::Kd, Accel::Bvh]
+        let ours: Vec<&str> = Accel::ALL
             .into_iter()
             .flat_map(|a| [Backend::Packets, Backend::Single].map(|b| b.label(a)))
             .collect();
         assert_eq!(ours, ["kd", "kd-single", "bvh", "bvh-single"]);
+        for (l, want) in ours.iter().zip([
+            (Backend::Packets, Accel::Kd),
+            (Backend::Single, Accel::Kd),
+            (Backend::Packets, Accel::Bvh),
+            (Backend::Single, Accel::Bvh),
+        ]) {
+            assert_eq!(Backend::from_label(l), Some(want), "{l}");
+        }
+        assert_eq!(Backend::from_label("packets"), None);
         for &b in Backend::ALL
             .iter()
             .filter(|b| !matches!(b, Backend::Packets | Backend::Single))

@@ -868,7 +868,7 @@ fn deforming(o: &BenchOptions) -> Result<Vec<DeformRow>, String> {
     for &n in &o.deform_sizes {
         let bytes = openrt_scene::skinned_figure_glb(n, 8);
         for &threads in &o.threads {
-            for accel in [Accel::Kd, Accel::Bvh] {
+            for accel in Accel::ALL {
                 eprintln!(
                     "bench: skinned figure, {n} triangles, {threads} threads, {}",
                     accel.name()
@@ -1026,7 +1026,7 @@ pub(super) fn all(o: &BenchOptions) -> Result<Results, String> {
     let (mut frames, mut diffs) = (Vec::new(), Vec::new());
     for s in &o.scenes {
         eprintln!("bench: {s}");
-        measure_scene(o, s, &[Accel::Kd, Accel::Bvh], &mut frames, &mut diffs)?;
+        measure_scene(o, s, &Accel::ALL, &mut frames, &mut diffs)?;
     }
     if o.device {
         return Ok(Results {
@@ -1109,7 +1109,7 @@ fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
     let modes = [(RenderMode::GlLike, 0), (RenderMode::Whitted, 3)];
     // A player per structure, committed at the middle frame.
     let mut players = Vec::new();
-    for accel in [Accel::Kd, Accel::Bvh] {
+    for accel in Accel::ALL {
         let mut player = open_player(name, accel)?;
         player.ctx_mut().set_threads(1).map_err(|e| e.to_string())?;
         let t = player.time_of(player.frames() / 2);
@@ -1165,8 +1165,7 @@ fn phases(o: &BenchOptions, name: &str) -> Result<Vec<PhaseRow>, String> {
     for ((_, accel, backend, _), mut sample) in runs.iter().zip(samples) {
         for (m, (mode, depth)) in modes.into_iter().enumerate() {
             let s = settings(o, mode, depth);
-            let (timed, untimed) = std::mem::take(&mut sample[m]);
-            let mut timed = timed;
+            let (mut timed, untimed) = std::mem::take(&mut sample[m]);
             timed.sort_by(|a, b| a.0.total_cmp(&b.0));
             let (timed_ms, phases) = timed[timed.len() / 2];
             out.push(PhaseRow {
