@@ -9,7 +9,7 @@
 //! four or none can be split. Deep down (past [`MEDIAN_DEPTH`]) or where
 //! binning cannot separate the centres, the split is the median, so the
 //! depth stays logarithmic for any input. Subtrees of at least
-//! [`crate::kd::fast_build::PARALLEL_MIN`] triangles are built as tasks of the pool the build
+//! [`BVH_TASK_MIN`] triangles are built as tasks of the pool the build
 //! runs in.
 
 use glam::{BVec3A, Vec3, Vec3A, Vec4};
@@ -34,6 +34,16 @@ pub(crate) const SMALL_RANGE: usize = 32;
 
 /// Most triangles in a leaf (two blocks of four).
 pub const BVH_MAX_LEAF: usize = 8;
+
+/// Fewest references of a subtree built as a task of the pool (when two or
+/// more of a node's interior children hold as many), for builds that run
+/// on a pool's thread.
+///
+/// PERF: museum16k's moving triangles (16,384) on two threads: 0.75x the
+/// build time of tasks from [`crate::kd::fast_build::PARALLEL_MIN`] (8,192)
+/// up, where only the root's two halves ran side by side (512 to 2,048
+/// within noise of each other; `museum_bvh` example, alternating rounds).
+pub(crate) const BVH_TASK_MIN: usize = 1024;
 
 /// Wide depth from which every split is the median.
 pub(crate) const MEDIAN_DEPTH: usize = 32;

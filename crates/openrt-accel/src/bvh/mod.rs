@@ -267,7 +267,7 @@ impl Bvh {
         let mut depth = 0;
         if !refs.is_empty() {
             let task_min = if rayon::current_thread_index().is_some() {
-                crate::kd::fast_build::PARALLEL_MIN
+                build::BVH_TASK_MIN
             } else {
                 usize::MAX
             };

@@ -298,6 +298,29 @@ fn the_lane_test_of_four_children_equals_the_group_and_single_ray_tests() {
     assert!(met > 5_000, "{met} boxes met: the sweep tests too little");
 }
 
+/// A build on a pool's thread (subtrees from `BVH_TASK_MIN` references
+/// as tasks) and one on another thread (sequential) give the same tree:
+/// the same nodes in the same order, the same leaves.
+#[test]
+fn builds_in_parallel_and_alone_agree() {
+    let tris = meshgen::bumpy_sphere(8 * super::build::BVH_TASK_MIN, 6, 0.2);
+    let alone = Bvh::build(tris.clone()).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+    let pooled = pool.install(|| Bvh::build(tris)).unwrap();
+    let layout = |b: &Bvh| {
+        b.nodes()
+            .iter()
+            .flat_map(|n| (0..BVH_WIDTH).map(move |i| (n.slot(i), n.child_box(i))))
+            .map(|(slot, a)| (slot, [a.min, a.max].map(|v| v.to_array().map(f32::to_bits))))
+            .collect::<Vec<_>>()
+    };
+    // Enough triangles that the root's grandchildren are tasks.
+    assert!(alone.triangles().len() >= 4 * super::build::BVH_TASK_MIN);
+    assert_eq!(layout(&alone), layout(&pooled));
+    assert_eq!(alone.prim_ids, pooled.prim_ids);
+    pooled.validate().unwrap();
+}
+
 /// A refit on a pool's thread (parallel, from `PARALLEL_MIN` triangles)
 /// and one on another thread (sequential) give the same tree.
 #[test]
