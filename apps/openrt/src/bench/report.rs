@@ -91,7 +91,7 @@ fn frame_tables(md: &mut String, o: &BenchOptions, res: &Results) {
     let rows = &res.frames;
     let _ = writeln!(
         md,
-        "# Benchmarks{}\n\nGenerated {} by `{}` ({}) on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds, promotions) + render; fps = 1000 / frame time.\n",
+        "# Benchmarks{}\n\nGenerated {} by `{}` ({}) on {} ({}); {}x{}, Whitted depth 3, medians over {} frames sampled across each animation. Frame time = commit (top-level rebuild, fast rebuilds or refits, promotions) + render, each sampled frame committed right after the two frames before it (untimed), as when the animation plays, so that a refit starts from the last frame's tree; fps = 1000 / frame time.\n",
         if o.device { " on the 16-core machine" } else { "" },
         humantime::format_rfc3339_seconds(std::time::SystemTime::now()),
         o.command,
@@ -108,7 +108,7 @@ fn frame_tables(md: &mut String, o: &BenchOptions, res: &Results) {
     );
     let _ = writeln!(
         md,
-        "## Frame rates on this machine\n\n| scene | mode | backend | threads | fps | commit ms | top-level ms | fast rebuild ms | promotions | render ms | rays/frame | instances | triangles |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "## Frame rates on this machine\n\n| scene | mode | backend | threads | fps | commit ms | top-level ms | moving objects ms | promotions | render ms | rays/frame | instances | triangles |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for r in rows {
         let _ = writeln!(
