@@ -43,9 +43,10 @@ pub enum Accel {
     Kd,
     /// A wide BVH (binned SAH, 4-wide nodes and an 8-wide copy for single
     /// rays on AVX2; refitted for unstructured motion). The default: its
-    /// frames are on par with the kd-trees' within the bench's swings, its
-    /// ray queries faster on most scenes and its refits of deforming meshes
-    /// several times cheaper (docs/BENCHMARKS.md).
+    /// frames are on par with the kd-trees' within the bench's swings
+    /// (behind on the terrain), its shadow queries faster on the museums,
+    /// and its refits of moving and deforming meshes several times cheaper
+    /// (docs/BENCHMARKS.md).
     #[default]
     Bvh,
 }
