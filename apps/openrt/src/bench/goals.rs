@@ -23,7 +23,8 @@ pub(super) const PAPER: &[(&str, &str, [f64; 5])] = &[
 pub(super) const KITCHEN_WHITTED_FPS: f64 = 4.3;
 /// Kitchen, OpenGL-like: the paper's 32-CPU frame rate.
 pub(super) const KITCHEN_GL_FPS: f64 = 26.0;
-/// Museum16k: the moving triangles' rebuild in a frame, at most (ms).
+/// Museum16k: the moving triangles' rebuild or refit in a played frame
+/// (the frames table's moving-objects column), at most (ms).
 pub(super) const MUSEUM16K_REBUILD_MS: f64 = 2.0;
 /// Embree's LOW build (or REFIT) time over our refit time, at least.
 pub(super) const REFIT_VS_EMBREE_LOW: f64 = 1.0;

@@ -143,10 +143,9 @@ impl Side {
 
     /// Commits frame `f` (after the two before it) and renders it through
     /// this side's renderers of `threads`, in both modes, sampling their
-    /// times. On the first
-    /// sampled frame of the fewest threads the images are compared with
-    /// `reference`, the `kd` backend's with kd-trees (which this side
-    /// writes when it is that).
+    /// times. On the first sampled frame of the fewest threads the images
+    /// are compared with `reference`, the `kd` backend's with kd-trees
+    /// (which this side writes when it is that).
     fn play(
         &mut self,
         name: &str,
@@ -655,15 +654,15 @@ fn oracle_check(
 /// (9 frames: 0.93-1.06; `refit_frames` example).
 pub(super) const BUILDER_FRAMES: usize = 9;
 
-/// kd-trees (fast, refitted or afresh; SAH) and BVHs (refitted or afresh) for the moving triangles of
-/// `name`: commit and render time per frame. Each sampled frame is committed
-/// right after the frame before it, as when the animation plays, so that a
-/// refit starts from the last frame's tree. The players (one per builder) take turns
-/// frame by frame (and the first of them changes from frame to frame), so
-/// that the machine's slow and fast phases fall on all of them alike; the
-/// render ratio is the median of the per-frame ratios. Returns the median
-/// per-frame ratios of Whitted render time with refitted trees to trees
-/// built afresh: kd-trees, then BVHs.
+/// kd-trees (fast, refitted or afresh; SAH) and BVHs (refitted or afresh)
+/// for the moving triangles of `name`: commit and render time per frame.
+/// Each sampled frame is committed right after the two frames before it, as
+/// when the animation plays, so that a refit starts from the last frame's
+/// tree. The players (one per builder) take turns frame by frame (and the
+/// first of them changes from frame to frame), so that the machine's slow
+/// and fast phases fall on all of them alike. Returns the median per-frame
+/// ratios of Whitted render time with refitted trees to trees built
+/// afresh: kd-trees, then BVHs.
 fn builders(o: &BenchOptions, name: &str) -> Result<BuilderRun, String> {
     let variants = [
         ("kd, fast, refitted", BuilderKind::Fast, true, Accel::Kd),
