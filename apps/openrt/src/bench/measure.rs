@@ -62,6 +62,17 @@ fn image_diff(kd: &Image, img: &Image) -> (bool, f64) {
     (a == b, off as f64 / (a.len() / 3).max(1) as f64)
 }
 
+/// Commits frame `f` of `player` right after the two frames before it
+/// (untimed), as a played animation does, so that a refit starts from the
+/// last frame's tree rather than after a jump across the animation; the
+/// stats of frame `f`'s commit.
+fn commit_played(player: &mut ScenePlayer, f: u32) -> Result<openrt_core::CommitStats, String> {
+    for g in f.saturating_sub(2)..f {
+        player.set_time(player.time_of(g)).map_err(|e| e.to_string())?;
+    }
+    player.set_time(player.time_of(f)).map_err(|e| e.to_string())
+}
+
 /// The bench scene `name` with `accel` under its objects, its first frame
 /// committed (the warm-up commit builds every tree).
 fn open_player(name: &str, accel: Accel) -> Result<ScenePlayer, String> {
@@ -154,16 +165,8 @@ impl Side {
         diffs: &mut Vec<ImageDiff>,
         reference: &mut Vec<Image>,
     ) -> Result<(), String> {
-        // The two frames before, untimed: the commit timed is the one a
-        // played animation pays (a refit from the last frame's tree, as in
-        // the builders table), not a jump across the animation.
-        for g in f.saturating_sub(2)..f {
-            self.player
-                .set_time(self.player.time_of(g))
-                .map_err(|e| e.to_string())?;
-        }
+        let c = commit_played(&mut self.player, f)?;
         let t = self.player.time_of(f);
-        let c = self.player.set_time(t).map_err(|e| e.to_string())?;
         let scene = self.player.ctx().scene();
         (self.tri, self.inst) = (scene.instanced_triangles(), scene.instances().len());
         let cam = self.player.camera(t);
@@ -693,11 +696,8 @@ fn builders(o: &BenchOptions, name: &str) -> Result<BuilderRun, String> {
             let v = (turn + k) % variants.len();
             let (player, r) = &mut players[v];
             let f = ((k + 1) * player.frames() as usize / (n + 1)) as u32;
-            for g in f.saturating_sub(2)..f {
-                player.set_time(player.time_of(g)).map_err(|e| e.to_string())?;
-            }
+            let st = commit_played(player, f)?;
             let t = player.time_of(f);
-            let st = player.set_time(t).map_err(|e| e.to_string())?;
             commits[v].push(st.total_ms);
             let (_, fs) = r
                 .render(
