@@ -405,7 +405,7 @@ fn own_renderer(q: &Quality) -> Result<Renderer, String> {
     Ok(r)
 }
 
-/// Environment variable that forces the packet width (4, 8 or 16) of every
+/// Environment variable that forces the packet width (4, 8, 16 or 32) of every
 /// renderer the CLI makes; the library itself reads no environment.
 pub(crate) const LANES_ENV: &str = "OPENRT_PACKET_LANES";
 
@@ -413,7 +413,7 @@ pub(crate) const LANES_ENV: &str = "OPENRT_PACKET_LANES";
 /// images are the same bytes either way).
 pub(crate) const NO_FRUSTUM_ENV: &str = "OPENRT_NO_FRUSTUM";
 
-/// The packet width: [`LANES_ENV`] when it names one (4, 8 or 16), else
+/// The packet width: [`LANES_ENV`] when it names one (4, 8, 16 or 32), else
 /// the CPU's.
 pub(crate) fn packet_width() -> openrt_accel::PacketWidth {
     std::env::var(LANES_ENV)

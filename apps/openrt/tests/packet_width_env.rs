@@ -1,5 +1,6 @@
 //! `OPENRT_PACKET_LANES` forces the packet width of the `kd` backend (4 is
-//! the portable baseline, 8 and 16 the AVX2 and AVX-512 widths); every
+//! the width without AVX2, 32 the large packets of AVX2 CPUs, 8 and 16 one
+//! register of AVX2 and of AVX-512); every
 //! width renders the bytes of the single-ray path, with frustum culling and
 //! without it (`OPENRT_NO_FRUSTUM`), over kd-trees and over BVHs
 //! (`--backend bvh`, `bvh-single`).
@@ -51,7 +52,7 @@ fn every_forced_width_gives_the_single_ray_bytes() {
             bvh_single == want,
             "{mode}: bvh-single gives other bytes than kd-single"
         );
-        for lanes in ["4", "8", "16"] {
+        for lanes in ["4", "8", "16", "32"] {
             for frustum in [true, false] {
                 let got = render(
                     &dir,

@@ -136,7 +136,8 @@ fn packets_answer_as_single_rays_bit_for_bit() {
             let (h4, n4) = check::<4>(name, &tree, &rays, 1);
             let (h8, n8) = check::<8>(name, &tree, &rays, 2);
             let (h16, n16) = check::<16>(name, &tree, &rays, 3);
-            for (h, n) in [(h4, n4), (h8, n8), (h16, n16)] {
+            let (h32, n32) = check::<32>(name, &tree, &rays, 4);
+            for (h, n) in [(h4, n4), (h8, n8), (h16, n16), (h32, n32)] {
                 assert!(
                     h > 100 && h < n,
                     "{name}: {h} hits of {n} lanes: the sweep must hit and miss"

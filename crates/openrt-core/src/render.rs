@@ -578,7 +578,8 @@ fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
     let offsets: Vec<(f32, f32)> = (0..spp).map(|i| sample_offset(job.settings.first_sample + i)).collect();
     let mut done = Vec::new();
     // Shaded blocks kept from tile to tile, one pool per packet width.
-    let (mut pool4, mut pool8, mut pool16) = (BlockPool::new(), BlockPool::new(), BlockPool::new());
+    let (mut pool4, mut pool8, mut pool16, mut pool32) =
+        (BlockPool::new(), BlockPool::new(), BlockPool::new(), BlockPool::new());
     loop {
         let k = job.next.fetch_add(1, Ordering::Relaxed);
         if k >= job.n_tiles {
@@ -631,6 +632,9 @@ fn tiles<T: Tracer>(job: &FrameJob<'_>, tracer: &T) -> Vec<TileResult> {
             (true, PacketWidth::W16) => {
                 packet_tile::<16, T>(&mut shader, job, tile, cone, &offsets, &mut pixels, &mut pool16);
             }
+            (true, PacketWidth::W32) => {
+                packet_tile::<32, T>(&mut shader, job, tile, cone, &offsets, &mut pixels, &mut pool32);
+            }
         }
         for p in &mut pixels {
             if !p.is_finite() {
@@ -669,7 +673,8 @@ pub const fn packet_block(n: usize) -> (u32, u32) {
     match n {
         4 => (2, 2),
         8 => (4, 2),
-        _ => (4, 4),
+        16 => (4, 4),
+        _ => (8, 4),
     }
 }
 

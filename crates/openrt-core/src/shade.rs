@@ -1,7 +1,7 @@
 //! Whitted ray tracing and the "OpenGL-like" local shading mode.
 
 use glam::{Vec2, Vec3, Vec3A};
-use openrt_accel::{Ray, lanes_mask, lanes_of, rays_from_lanes, sign_groups};
+use openrt_accel::{MAX_LANES, Ray, lanes_mask, lanes_of, rays_from_lanes, sign_groups};
 use wide::f32x4;
 
 use crate::highlight::{highlight_powers, log2_above_one};
@@ -837,8 +837,8 @@ impl<T: Tracer> Shader<'_, T> {
         depth: u32,
         block: &mut ShadedBlock<N>,
     ) {
-        // PERF: packets of 8 or 16 lanes (chosen for a CPU with AVX2 or
-        // AVX-512) are shaded by code compiled for AVX2; 4-lane packets, the
+        // PERF: packets of 8 lanes and more (32 are chosen for a CPU with
+        // AVX2 or AVX-512) are shaded by code compiled for AVX2; 4-lane packets, the
         // portable width, by the SSE build. Rust never fuses a product and a
         // sum, so both give the same bits (the packet-width test renders
         // every width against single rays). Kitchen GL-like frames 0.97 of
@@ -981,7 +981,7 @@ impl<T: Tracer> Shader<'_, T> {
     // `rays`, never read.
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    fn trace_shadows<const N: usize>(&mut self, chunks: &[ShadowLanes; 4], rays: &[Ray; N]) -> Vec<u32> {
+    fn trace_shadows<const N: usize>(&mut self, chunks: &[ShadowLanes; QUADS], rays: &[Ray; N]) -> Vec<u32> {
         let mut blocked = Vec::with_capacity(self.env.lights.len());
         let mut shadow = *rays;
         for (j, light) in self.env.lights.iter().enumerate() {
@@ -1030,8 +1030,8 @@ impl<T: Tracer> Shader<'_, T> {
         block.lanes = lanes;
         let bouncing = depth < self.max_depth;
         let mut preps: [Option<Prepared>; N] = [const { None }; N];
-        let mut lits: [Option<LitLanes<F>>; 4] = [None; 4];
-        let mut shadows = [ShadowLanes::default(); 4];
+        let mut lits: [Option<LitLanes<F>>; QUADS] = [None; QUADS];
+        let mut shadows = [ShadowLanes::default(); QUADS];
         let mut have = 0u32;
         let mut t = t;
         for c in 0..N / w {
@@ -1671,6 +1671,9 @@ fn quarter<F: LaneF32>(v: &Lanes<F>, q: usize) -> Lanes {
     }
 }
 
+/// Chunks of four lanes in the widest packet.
+const QUADS: usize = MAX_LANES / 4;
+
 /// Four lanes of a packet's prepared hits as the shadow rays need them:
 /// hit points, facing normals and the origins of rays leaving them, with
 /// each lane's silent lights.
@@ -1685,11 +1688,11 @@ struct ShadowLanes {
 }
 
 impl ShadowLanes {
-    /// The chunks of four lanes of `preps` (up to 16 lanes).
+    /// The chunks of four lanes of `preps` (up to [`MAX_LANES`]).
     #[allow(clippy::inline_always)]
     #[inline(always)]
-    fn gather<const N: usize>(preps: &[Option<Prepared>; N]) -> [Self; 4] {
-        let mut chunks = [Self::default(); 4];
+    fn gather<const N: usize>(preps: &[Option<Prepared>; N]) -> [Self; QUADS] {
+        let mut chunks = [Self::default(); QUADS];
         for (c, chunk) in chunks.iter_mut().enumerate().take(N / 4) {
             let (mut p, mut nf, mut out) = ([Vec3::ZERO; 4], [Vec3::ZERO; 4], [Vec3::ZERO; 4]);
             for i in 0..4 {
@@ -1882,7 +1885,7 @@ mod tests {
                 let keep = rays[0];
                 let mut got = [keep; 16];
                 let mut mask = 0;
-                for (c, chunk) in chunks.iter().enumerate() {
+                for (c, chunk) in chunks.iter().enumerate().take(16 / 4) {
                     mask |= chunk.rays(j, light.position, &mut got[4 * c..]) << (4 * c);
                 }
                 for l in 0..16 {

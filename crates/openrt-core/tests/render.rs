@@ -773,7 +773,7 @@ fn mixed_lanes(plain: bool, mode: RenderMode) {
             "{filter:?}: a varied image, {} colours",
             distinct.len()
         );
-        for width in [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16] {
+        for width in [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16, PacketWidth::W32] {
             assert!(
                 image(Backend::Packets, width) == want,
                 "{filter:?}, {width:?}: packets differ from single rays"

@@ -1,6 +1,7 @@
 //! Ray queries alone, in a loop, for profiling (`perf record`): the
 //! middle frame of a scene at 640x480, its camera rays in the renderer's
-//! 16-lane pixel blocks (closest hit), or the shadow rays from their hits
+//! pixel blocks of the CPU's packet width (closest hit; `lanes=16` or another
+//! width forces one), or the shadow rays from their hits
 //! towards each light (`shadow`: any hit, a packet per block and light,
 //! each light's last occluder tried first as in a frame),
 //! through the packet queries or one by one (`single`), with the scene's
@@ -8,7 +9,7 @@
 //! kd-trees (`kd`) or BVHs (`bvh`); no shading. The
 //! rays are those of `openrt bench`'s query table. Prints the best pass.
 //!
-//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single] [kd|bvh]`
+//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single] [kd|bvh] [lanes=N]`
 use glam::Vec3;
 use openrt_accel::Ray;
 use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
@@ -16,6 +17,21 @@ use openrt_scene::ScenePlayer;
 use std::time::Instant;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
+    let width = args
+        .iter()
+        .find_map(|a| a.strip_prefix("lanes="))
+        .map_or_else(openrt_accel::PacketWidth::detect, |v| {
+            openrt_accel::PacketWidth::parse(v).expect("lanes=4, 8, 16 or 32")
+        });
+    match width {
+        openrt_accel::PacketWidth::W4 => run::<4>(&args),
+        openrt_accel::PacketWidth::W8 => run::<8>(&args),
+        openrt_accel::PacketWidth::W16 => run::<16>(&args),
+        openrt_accel::PacketWidth::W32 => run::<32>(&args),
+    }
+}
+
+fn run<const N: usize>(args: &[String]) {
     let path = std::path::PathBuf::from(&args[1]);
     let secs: f64 = args.get(2).map_or(5.0, |s| s.parse().unwrap());
     let single = args.iter().any(|s| s == "single");
@@ -32,11 +48,11 @@ fn main() {
     let scene = player.ctx().scene();
     let (w, h) = (640u32, 480u32);
     let cam = player.camera(t).rays(w, h).unwrap();
-    let (bw, bh) = openrt_core::kernels::packet_block(16);
+    let (bw, bh) = openrt_core::kernels::packet_block(N);
     let mut primary = Vec::new();
     for by in (0..h).step_by(bh as usize) {
         for bx in (0..w).step_by(bw as usize) {
-            for l in 0..16u32 {
+            for l in 0..N as u32 {
                 let (x, y) = (bx + l % bw, by + l / bw);
                 primary.push(cam.ray(x.min(w - 1), y.min(h - 1)));
             }
@@ -44,7 +60,7 @@ fn main() {
     }
     let lights: Vec<Vec3> = player.env().lights.iter().map(|l| l.position).collect();
     let mut shadows = Vec::new();
-    for block in primary.chunks(16) {
+    for block in primary.chunks(N) {
         for &light in &lights {
             for r in block {
                 shadows.push((first_hit_shadow_ray(&scene, r, light), light));
@@ -70,22 +86,26 @@ fn main() {
                 hits += rays
                     .iter()
                     .enumerate()
-                    .filter(|(k, r)| scene.occluded_hinted(r, &mut hints[(k / 16) % nl]))
+                    .filter(|(k, r)| scene.occluded_hinted(r, &mut hints[(k / N) % nl]))
                     .count();
             }
             (false, false) => {
-                for c in rays.chunks_exact(16) {
-                    let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
-                    hits += scene.intersect_packet(&pk, 0xFFFF).iter().flatten().count();
+                for c in rays.chunks_exact(N) {
+                    let pk: [Ray; N] = std::array::from_fn(|l| c[l]);
+                    hits += scene
+                        .intersect_packet(&pk, openrt_accel::lanes_mask(N))
+                        .iter()
+                        .flatten()
+                        .count();
                 }
             }
             (false, true) => {
                 let mut hints = vec![OccluderHint::new(); nl];
-                for (k, c) in rays.chunks_exact(16).enumerate() {
-                    let pk: [Ray; 16] = std::array::from_fn(|l| c[l]);
+                for (k, c) in rays.chunks_exact(N).enumerate() {
+                    let pk: [Ray; N] = std::array::from_fn(|l| c[l]);
                     let j = k % nl;
                     hits += scene
-                        .occluded_packet_toward_hinted(&pk, 0xFFFF, lights[j], &mut hints[j])
+                        .occluded_packet_toward_hinted(&pk, openrt_accel::lanes_mask(N), lights[j], &mut hints[j])
                         .count_ones() as usize;
                 }
             }

@@ -28,7 +28,7 @@ mod bart_dir;
 
 use bart_dir::bart;
 
-const WIDTHS: [PacketWidth; 3] = [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16];
+const WIDTHS: [PacketWidth; 4] = [PacketWidth::W4, PacketWidth::W8, PacketWidth::W16, PacketWidth::W32];
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -194,6 +194,7 @@ fn sweep(name: &str, player: &mut ScenePlayer, frames: &[u32], w: u32, h: u32) {
                 compare::<4>(&tag, &scene, rays, u64::from(f) + 1),
                 compare::<8>(&tag, &scene, rays, u64::from(f) + 2),
                 compare::<16>(&tag, &scene, rays, u64::from(f) + 3),
+                compare::<32>(&tag, &scene, rays, u64::from(f) + 4),
             ] {
                 if *kind == "primary" {
                     assert!(h > 0 && h <= n, "{tag}: {h} hits in {n} lanes");
@@ -282,11 +283,15 @@ fn same_bytes(name: &str, player: &mut ScenePlayer, frame: u32) {
                 .iter()
                 .all(|i| i.geometry.tree.accel() == Accel::Bvh)
         );
-        for backend in [Backend::Single, Backend::Packets] {
-            let got = render(player, t, mode, 2, backend, PacketWidth::W8);
+        for (backend, w) in [
+            (Backend::Single, PacketWidth::W8),
+            (Backend::Packets, PacketWidth::W8),
+            (Backend::Packets, PacketWidth::W32),
+        ] {
+            let got = render(player, t, mode, 2, backend, w);
             assert!(
                 got == want,
-                "{name} frame {frame} {mode:?}: BVH with {backend:?} differs from kd"
+                "{name} frame {frame} {mode:?}: BVH with {backend:?} ({w:?}) differs from kd"
             );
         }
         player.ctx_mut().set_accel(Accel::Kd);

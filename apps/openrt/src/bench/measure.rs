@@ -377,6 +377,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
             PacketWidth::W4 => packets::<4>(scene, rays, closest, &lights),
             PacketWidth::W8 => packets::<8>(scene, rays, closest, &lights),
             PacketWidth::W16 => packets::<16>(scene, rays, closest, &lights),
+            PacketWidth::W32 => packets::<32>(scene, rays, closest, &lights),
         };
         let single = time(&mut || single_of(&scene));
         let packet = time(&mut || packet_of(&scene));
@@ -409,6 +410,7 @@ fn ray_kinds(o: &BenchOptions, name: &str) -> Result<Vec<KindRow>, String> {
                 PacketWidth::W4 => embree_packets::<4>(&em, rays, closest),
                 PacketWidth::W8 => embree_packets::<8>(&em, rays, closest),
                 PacketWidth::W16 => embree_packets::<16>(&em, rays, closest),
+                PacketWidth::W32 => embree_packets::<32>(&em, rays, closest),
             });
             Some((n / one / 1e6, n / pk / 1e6))
         };

@@ -454,7 +454,7 @@ mod tests {
     }
     /// A single ray's walk hands over every instance whose box it meets,
     /// at most once, and none the caller's own test would refuse; so do
-    /// packets (4, 8, 16 lanes, with and without a frustum, lanes with
+    /// packets (4, 8, 16, 32 lanes, with and without a frustum, lanes with
     /// zero direction components among them) for each lane.
     #[test]
     fn walks_reach_every_instance_a_ray_reaches_once() {
@@ -500,6 +500,7 @@ mod tests {
         packets::<4>(&t, &all, &rays);
         packets::<8>(&t, &all, &rays);
         packets::<16>(&t, &all, &rays);
+        packets::<32>(&t, &all, &rays);
     }
 
     #[test]

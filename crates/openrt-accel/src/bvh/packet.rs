@@ -25,8 +25,8 @@ use crate::packet::boxes::PacketBoxes;
 use crate::packet::frustum::Frustum;
 use crate::packet::interval::PacketInterval;
 
-/// Lane groups of four in the widest packet (16 lanes).
-const MAX_GROUPS: usize = 4;
+/// Lane groups of four in the widest packet.
+const MAX_GROUPS: usize = crate::packet::width::MAX_LANES / 4;
 
 /// A packet's rays four lanes to a register, for the lane test.
 pub(crate) struct LaneRays {
@@ -240,7 +240,7 @@ where
                 // a tenth of kitchen's primary queries.
                 let far = || crate::packet::width::lanes_of(active).fold(f32::NEG_INFINITY, |m, l| m.max(closest[l]));
                 let occupied = (0..BVH_WIDTH).fold(0u32, |m, i| m | (u32::from(node.child[i] != EMPTY_SLOT) << i));
-                let mut kids = [(0u32, 0.0f32); BVH_WIDTH];
+                let mut kids = [(0u32, 0.0f32, 0usize); BVH_WIDTH];
                 let mut n = 0;
                 // The first active lane against all four children at once
                 // (Wald, Boulos & Shirley 2007): a child it meets takes
@@ -257,7 +257,7 @@ where
                 while along != 0 {
                     let i = along.trailing_zeros() as usize;
                     along &= along - 1;
-                    kids[n] = (active | ((i as u32) << 24), near[i]);
+                    kids[n] = (active, near[i], i);
                     n += 1;
                 }
                 while cand != 0 {
@@ -280,8 +280,7 @@ where
                                 active & !((1u32 << (4 * g + 4)) - 1)
                             };
                             let first = hit.trailing_zeros() as usize;
-                            kids[n] = ((hit << (4 * g)) | later, near.to_array()[first]);
-                            kids[n].0 |= (i as u32) << 24; // slot index kept in the high bits
+                            kids[n] = ((hit << (4 * g)) | later, near.to_array()[first], i);
                             n += 1;
                             break;
                         }
@@ -300,13 +299,10 @@ where
                         }
                         kids[m] = k;
                     }
-                    let entry = |k: (u32, f32)| {
-                        let i = (k.0 >> 24) as usize;
-                        Entry {
-                            child: node.child[i],
-                            count: node.count[i],
-                            lanes: k.0 & 0x00FF_FFFF,
-                        }
+                    let entry = |k: (u32, f32, usize)| Entry {
+                        child: node.child[k.2],
+                        count: node.count[k.2],
+                        lanes: k.0,
                     };
                     for &k in &kids[..n - 1] {
                         stack[sp].write(entry(k));

@@ -643,6 +643,7 @@ fn packets_answer_as_single_rays() {
             (4, packets_as_single_rays::<4>(bvh, rays, 1)),
             (8, packets_as_single_rays::<8>(bvh, rays, 2)),
             (16, packets_as_single_rays::<16>(bvh, rays, 3)),
+            (32, packets_as_single_rays::<32>(bvh, rays, 4)),
         ] {
             assert!(h >= least, "{name} N={n}: {h} hits");
         }

@@ -385,7 +385,7 @@ pub(crate) fn leaf_occluder_where(
 /// that lane's ray alone, less those a mailbox skips, which could not lower
 /// its bound.
 ///
-/// On CPUs with AVX2, packets of 8 and 16 lanes run a copy of the loop
+/// On CPUs with AVX2, packets of 8 lanes and more run a copy of the loop
 /// compiled for AVX2 whose triangle test takes eight lanes to a register
 /// (`PacketBlockRay::intersect_block8`, bit for bit the four-lane test):
 /// the same calls of `visit` with the same hits.

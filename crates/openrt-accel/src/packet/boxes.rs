@@ -404,6 +404,7 @@ mod tests {
         }
         let mut rng = SmallRng::seed_from_u64(12);
         for _ in 0..3000 {
+            check::<32>(&mut rng);
             check::<16>(&mut rng);
             check::<8>(&mut rng);
             check::<6>(&mut rng);
@@ -440,6 +441,7 @@ mod tests {
         }
         let mut rng = SmallRng::seed_from_u64(19);
         for _ in 0..3000 {
+            check::<32>(&mut rng);
             check::<16>(&mut rng);
             check::<8>(&mut rng);
             check::<6>(&mut rng);

@@ -842,6 +842,7 @@ mod tests {
         }
         let mut rng = SmallRng::seed_from_u64(44);
         for _ in 0..4000 {
+            check::<32>(&mut rng);
             check::<16>(&mut rng);
             check::<8>(&mut rng);
             check::<4>(&mut rng);

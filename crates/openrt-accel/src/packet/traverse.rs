@@ -155,8 +155,8 @@ where
     if stopped { lane } else { 0 }
 }
 
-/// [`walk`] compiled for the CPU: on CPUs with AVX2, packets of 8 and 16
-/// lanes take a copy compiled for AVX2, whose lane loops run eight lanes to
+/// [`walk`] compiled for the CPU: on CPUs with AVX2, packets of 8 lanes
+/// and more take a copy compiled for AVX2, whose lane loops run eight lanes to
 /// a register (the same operations lane by lane, so the same bits: tested
 /// against the portable copy).
 // PERF: kitchen primary packet queries 0.96 of the portable walk's time
@@ -476,7 +476,10 @@ mod tests {
             5,
             Aabb::new(Vec3::splat(-1.5), Vec3::splat(1.5)),
         ));
-        let leaves = compare::<16>(&tree, &rays) + compare::<8>(&tree, &rays) + compare::<4>(&tree, &rays);
+        let leaves = compare::<32>(&tree, &rays)
+            + compare::<16>(&tree, &rays)
+            + compare::<8>(&tree, &rays)
+            + compare::<4>(&tree, &rays);
         assert!(leaves > 1_000, "the walks meet leaves: {leaves}");
     }
 }

@@ -475,8 +475,9 @@ impl EmbreeTwoLevel {
     packet_queries!(closest16, any16, 16, Ray16, Hit16, RayHit16, intersect16, occluded16);
 
     /// Closest hits of the `lanes` of a packet through Embree's packet
-    /// kernels of the same width (rtcIntersect4/8/16; other widths go ray by
-    /// ray), with the index of the instance hit.
+    /// kernels of the same width (rtcIntersect4/8/16; packets of 32 lanes as
+    /// two of 16, Embree's widest; other widths go ray by ray), with the
+    /// index of the instance hit.
     #[must_use]
     pub fn intersect_packet<const N: usize>(
         &self,
@@ -488,6 +489,11 @@ impl EmbreeTwoLevel {
             4 => self.closest4(rays, lanes, &mut out),
             8 => self.closest8(rays, lanes, &mut out),
             16 => self.closest16(rays, lanes, &mut out),
+            32 => {
+                for half in [0, 16] {
+                    self.closest16(&rays[half..], (lanes >> half) & 0xFFFF, &mut out[half..]);
+                }
+            }
             _ => {
                 for l in crate::packet::width::lanes_of(lanes) {
                     out[l] = self.intersect_instance(&rays[l]);
@@ -497,13 +503,17 @@ impl EmbreeTwoLevel {
         out
     }
 
-    /// The lanes of a packet that hit anything (rtcOccluded4/8/16).
+    /// The lanes of a packet that hit anything (rtcOccluded4/8/16; 32 lanes
+    /// as two packets of 16).
     #[must_use]
     pub fn occluded_packet<const N: usize>(&self, rays: &[Ray; N], lanes: u32) -> u32 {
         match N {
             4 => self.any4(rays, lanes),
             8 => self.any8(rays, lanes),
             16 => self.any16(rays, lanes),
+            32 => [0, 16].into_iter().fold(0, |m, half| {
+                m | (self.any16(&rays[half..], (lanes >> half) & 0xFFFF) << half)
+            }),
             _ => crate::packet::width::lanes_of(lanes)
                 .filter(|&l| self.occluded(&rays[l]))
                 .fold(0, |m, l| m | (1 << l)),
