@@ -667,7 +667,7 @@ impl Tile {
 }
 
 /// Width and height of the pixel block that fills a packet of `n` lanes
-/// (4x4 for 16, 4x2 for 8, 2x2 for 4): the renderer's primary packets.
+/// (8x4 for 32, 4x4 for 16, 4x2 for 8, 2x2 for 4): the renderer's primary packets.
 #[must_use]
 pub const fn packet_block(n: usize) -> (u32, u32) {
     match n {
