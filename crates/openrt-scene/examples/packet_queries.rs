@@ -3,16 +3,18 @@
 //! pixel blocks of the CPU's packet width (closest hit; `lanes=16` or another
 //! width forces one), or the shadow rays from their hits
 //! towards each light (`shadow`: any hit, a packet per block and light,
-//! each light's last occluder tried first as in a frame),
+//! each light's last occluder tried first as in a frame), or the mirror
+//! bounces of the primary hits on materials with a specular colour
+//! (`bounce`: closest hit, packed in the order of their pixels),
 //! through the packet queries or one by one (`single`), with the scene's
 //! structure under the instances (BVHs unless it says otherwise), or
 //! kd-trees (`kd`) or BVHs (`bvh`); no shading. The
 //! rays are those of `openrt bench`'s query table. Prints the best pass.
 //!
-//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow] [single] [kd|bvh] [lanes=N]`
+//! `cargo run --release -p openrt-scene --example packet_queries -- scenes/kitchen.ron 5 [shadow|bounce] [single] [kd|bvh] [lanes=N]`
 use glam::Vec3;
 use openrt_accel::Ray;
-use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray};
+use openrt_core::kernels::{OccluderHint, first_hit_shadow_ray, offset_ray_origin};
 use openrt_scene::ScenePlayer;
 use std::time::Instant;
 fn main() {
@@ -36,6 +38,7 @@ fn run<const N: usize>(args: &[String]) {
     let secs: f64 = args.get(2).map_or(5.0, |s| s.parse().unwrap());
     let single = args.iter().any(|s| s == "single");
     let shadow = args.iter().any(|s| s == "shadow");
+    let bounce = args.iter().any(|s| s == "bounce");
     let mut player = ScenePlayer::open(Some(&path)).unwrap();
     for (name, accel) in [("kd", openrt_core::Accel::Kd), ("bvh", openrt_core::Accel::Bvh)] {
         if args.iter().any(|s| s == name) {
@@ -70,6 +73,29 @@ fn run<const N: usize>(args: &[String]) {
     let nl = lights.len().max(1);
     let rays: Vec<Ray> = if shadow {
         shadows.iter().map(|s| s.0).collect()
+    } else if bounce {
+        let mut out: Vec<Ray> = primary
+            .iter()
+            .filter_map(|r| {
+                let hit = scene.intersect(r)?;
+                let s = scene.surface(r, &hit).ok()?;
+                if scene.materials()[s.material.index() as usize].specular == Vec3::ZERO {
+                    return None;
+                }
+                let d = r.dir.normalize();
+                let n = if d.dot(s.shading_normal) > 0.0 {
+                    -s.shading_normal
+                } else {
+                    s.shading_normal
+                };
+                let dir = d - 2.0 * d.dot(n) * n;
+                let o = offset_ray_origin(s.point, n, s.error_scale);
+                Some(Ray::new(o, dir, 0.0, f32::INFINITY))
+            })
+            .collect();
+        out.truncate(out.len() / N * N);
+        println!("{} bounce rays", out.len());
+        out
     } else {
         primary
     };

@@ -579,7 +579,8 @@ fn packets_answer_as_single_rays() {
     let bvh = Bvh::build(tris.clone()).unwrap();
     let b = Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3));
     // Coherent camera packets (a frustum), shadow-like packets ending at
-    // one point, scattered rays (intervals), rays with zero components.
+    // one point, scattered rays (lane by lane for closest hits, intervals
+    // for any hit), rays with zero components.
     let camera = meshgen::camera_rays(Vec3::new(0.2, 0.1, -4.0), Vec3::ZERO, 32, 32, 50.0);
     let light = Vec3::new(3.0, 4.0, -2.0);
     let shadow: Vec<Ray> = meshgen::random_rays(1024, 3, b)
