@@ -5,7 +5,8 @@
 //! towards each light (`shadow`: any hit, a packet per block and light,
 //! each light's last occluder tried first as in a frame), or the mirror
 //! bounces of the primary hits on materials with a specular colour
-//! (`bounce`: closest hit, packed in the order of their pixels),
+//! (`bounce`: closest hit, packed in the order of their pixels; with
+//! `shadow`, the shadow rays of their hits),
 //! through the packet queries or one by one (`single`), with the scene's
 //! structure under the instances (BVHs unless it says otherwise), or
 //! kd-trees (`kd`) or BVHs (`bvh`); no shading. The
@@ -71,7 +72,7 @@ fn run<const N: usize>(args: &[String]) {
         }
     }
     let nl = lights.len().max(1);
-    let rays: Vec<Ray> = if shadow {
+    let rays: Vec<Ray> = if shadow && !bounce {
         shadows.iter().map(|s| s.0).collect()
     } else if bounce {
         let mut out: Vec<Ray> = primary
@@ -95,7 +96,18 @@ fn run<const N: usize>(args: &[String]) {
             .collect();
         out.truncate(out.len() / N * N);
         println!("{} bounce rays", out.len());
-        out
+        if shadow {
+            // Their hits' shadow rays, a packet per block and light.
+            let mut s = Vec::new();
+            for block in out.chunks(N) {
+                for &light in &lights {
+                    s.extend(block.iter().map(|r| first_hit_shadow_ray(&scene, r, light)));
+                }
+            }
+            s
+        } else {
+            out
+        }
     } else {
         primary
     };
