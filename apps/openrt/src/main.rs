@@ -260,6 +260,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = check_lanes_env() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
     openrt_accel::set_frustum_culling(std::env::var_os(NO_FRUSTUM_ENV).is_none());
     #[cfg(feature = "mpi")]
     if let Some(cluster) = distributed::Cluster::start(cli.mpi_root_renders, cli.mpi_tiles == "static") {
@@ -412,6 +416,21 @@ pub(crate) const LANES_ENV: &str = "OPENRT_PACKET_LANES";
 /// Environment variable that turns frustum culling off (A/B runs: the
 /// images are the same bytes either way).
 pub(crate) const NO_FRUSTUM_ENV: &str = "OPENRT_NO_FRUSTUM";
+
+/// Refuses a [`LANES_ENV`] that names no packet width (set but empty,
+/// not a number, or another count of lanes), before any work starts.
+fn check_lanes_env() -> Result<(), String> {
+    match std::env::var_os(LANES_ENV) {
+        None => Ok(()),
+        Some(v) => match v.to_str().and_then(openrt_accel::PacketWidth::parse) {
+            Some(_) => Ok(()),
+            None => Err(format!(
+                "{LANES_ENV}={}: a packet has 4, 8, 16 or 32 lanes (unset it for the CPU's width)",
+                v.to_string_lossy()
+            )),
+        },
+    }
+}
 
 /// The packet width: [`LANES_ENV`] when it names one (4, 8, 16 or 32), else
 /// the CPU's.

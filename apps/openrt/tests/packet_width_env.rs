@@ -83,3 +83,26 @@ fn every_forced_width_gives_the_single_ray_bytes() {
         }
     }
 }
+
+/// A lane count that is no packet width stops the CLI with an error naming
+/// the variable and the widths it takes, before it renders anything.
+#[test]
+fn a_width_that_is_no_packet_width_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    for bad in ["7", "64", "sixteen", "", "-4"] {
+        let out = tmp.path().join("bad.png");
+        let run = Command::new(env!("CARGO_BIN_EXE_openrt"))
+            .args(["render", "--width", "8", "--height", "8", "-o"])
+            .arg(&out)
+            .env(LANES_ENV, bad)
+            .output()
+            .expect("openrt runs");
+        assert!(!run.status.success(), "{LANES_ENV}={bad:?} accepted");
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            err.contains(&format!("{LANES_ENV}={bad}:")) && err.contains("4, 8, 16 or 32"),
+            "{bad:?}: {err}"
+        );
+        assert!(!out.exists(), "{bad:?}: an image was written");
+    }
+}
