@@ -25,7 +25,12 @@ use wide::f32x4;
 ///
 /// `dir` is not normalised: `t` is measured in units of `dir`, which keeps
 /// `t` meaningful when a ray is transformed into an object's space.
+// PERF: laid out as written (`repr(C)`), 60 bytes: a packet's lanes are
+// read four floats at a time (origin and `dir.x`, the rest of `dir` and the
+// interval, `inv_dir` and `shear.x`: `PacketBoxes::new`), and blocks of
+// rays are copied whole by the shading.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Ray {
     /// Ray origin.
     pub origin: Vec3,
@@ -37,12 +42,12 @@ pub struct Ray {
     pub t_max: f32,
     /// Safe reciprocal of `dir` (see the type docs).
     pub(crate) inv_dir: Vec3,
-    /// Index of the dominant direction component (the shear's z axis), then x, y.
-    pub(crate) kz: usize,
-    pub(crate) kx: usize,
-    pub(crate) ky: usize,
     /// Shear constants `(Sx, Sy, Sz)` of the watertight test.
     pub(crate) shear: Vec3,
+    /// Index of the dominant direction component (the shear's z axis), then x, y.
+    pub(crate) kz: u8,
+    pub(crate) kx: u8,
+    pub(crate) ky: u8,
 }
 
 impl Ray {
@@ -70,7 +75,7 @@ impl Ray {
     pub fn new_inline(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Self {
         let inv_dir = Vec3::new(safe_rcp(dir.x), safe_rcp(dir.y), safe_rcp(dir.z));
         let a = dir.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
+        let kz: u8 = if a.x >= a.y && a.x >= a.z {
             0
         } else if a.y >= a.z {
             1
@@ -80,13 +85,13 @@ impl Ray {
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
         // Keep the winding of the projected triangle: swap when dir[kz] < 0.
-        if dir[kz] < 0.0 {
+        let dz = dir[usize::from(kz)];
+        if dz < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let dz = dir[kz];
         let valid = dz != 0.0 && dir.is_finite() && origin.is_finite();
         let shear = if valid {
-            Vec3::new(dir[kx] / dz, dir[ky] / dz, 1.0 / dz)
+            Vec3::new(dir[usize::from(kx)] / dz, dir[usize::from(ky)] / dz, 1.0 / dz)
         } else {
             Vec3::ZERO
         };
@@ -122,6 +127,12 @@ impl Ray {
             self.t_max = t_max;
         }
         self
+    }
+
+    /// The watertight test's axes `[kx, ky, kz]` (`kz` the dominant one).
+    #[inline]
+    pub(crate) fn axes(&self) -> [usize; 3] {
+        [usize::from(self.kx), usize::from(self.ky), usize::from(self.kz)]
     }
 
     /// `true` when origin and direction are finite and the direction is non-zero.
@@ -195,7 +206,7 @@ pub fn rays_from_lanes(out: &mut [Ray], lanes: u32, origin: [f32x4; 3], dir: [f3
             continue;
         }
         let bit = |m: u32| m & (1 << i) != 0;
-        let kz = if bit(is_x) {
+        let kz: u8 = if bit(is_x) {
             0
         } else if bit(y_over_z) {
             1
@@ -258,7 +269,7 @@ mod tests {
     }
 
     /// Every field of a ray as bits (NaN equal to itself).
-    fn bits(r: &Ray) -> ([u32; 14], [usize; 3]) {
+    fn bits(r: &Ray) -> ([u32; 14], [u8; 3]) {
         let v = [r.origin, r.dir, r.inv_dir, r.shear];
         let mut f = [0u32; 14];
         for (k, x) in v.iter().flat_map(Vec3::to_array).enumerate() {

@@ -46,7 +46,7 @@ pub type TriHit = (f32, f32, f32);
 #[inline(always)]
 #[must_use]
 pub fn intersect_triangle(ray: &Ray, tri: &Triangle, t_max: f32) -> Option<TriHit> {
-    let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+    let [kx, ky, kz] = ray.axes();
     let s = ray.shear;
     let a = (tri[0] - ray.origin).to_array();
     let b = (tri[1] - ray.origin).to_array();

@@ -87,19 +87,16 @@ pub(crate) struct BlockRay {
 impl BlockRay {
     pub(crate) fn new(ray: &Ray) -> Self {
         let o = ray.origin.to_array();
+        let [kx, ky, kz] = ray.axes();
         Self {
-            o: [
-                f32x4::splat(o[ray.kx]),
-                f32x4::splat(o[ray.ky]),
-                f32x4::splat(o[ray.kz]),
-            ],
+            o: [f32x4::splat(o[kx]), f32x4::splat(o[ky]), f32x4::splat(o[kz])],
             sx: f32x4::splat(ray.shear.x),
             sy: f32x4::splat(ray.shear.y),
             sz: f32x4::splat(ray.shear.z),
             t_min: f32x4::splat(ray.t_min),
-            kx: ray.kx,
-            ky: ray.ky,
-            kz: ray.kz,
+            kx,
+            ky,
+            kz,
         }
     }
 

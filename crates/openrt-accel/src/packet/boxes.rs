@@ -24,7 +24,6 @@ use crate::geom::aabb::Aabb;
 use crate::geom::box_quad::BoxQuad;
 use crate::geom::numeric::gamma;
 use crate::geom::ray::Ray;
-use crate::packet::width::by_axis;
 
 /// Relative widening of the boxes tested by [`PacketBoxes::reaching`].
 pub const BOX_SLACK: f32 = 1e-4;
@@ -46,18 +45,84 @@ pub struct PacketBoxes<const N: usize> {
     pub(crate) scale: f32,
 }
 
+/// A packet's rays transposed: each field's values lane by lane.
+struct Laid<const N: usize> {
+    o: [[f32; N]; 3],
+    dir: [[f32; N]; 3],
+    inv: [[f32; N]; 3],
+    t_min: [f32; N],
+    t_max: [f32; N],
+    /// Lanes whose ray is valid ([`Ray::is_valid`]: a non-zero shear).
+    valid: u32,
+}
+
+impl<const N: usize> Laid<N> {
+    /// The lanes of `rays`, four at a time: the ray's fields lie in the
+    /// order `origin, dir, t_min, t_max, inv_dir, shear` (`Ray` is
+    /// `repr(C)`), so each ray gives four rows of four adjacent floats,
+    /// transposed into four lanes of each field.
+    #[inline]
+    fn new(rays: &[Ray; N]) -> Self {
+        let mut out = Self {
+            o: [[0.0; N]; 3],
+            dir: [[0.0; N]; 3],
+            inv: [[0.0; N]; 3],
+            t_min: [0.0; N],
+            t_max: [0.0; N],
+            valid: 0,
+        };
+        let mut chunks = rays.chunks_exact(4);
+        for (k, c) in chunks.by_ref().enumerate() {
+            let rows = |f: &dyn Fn(&Ray) -> [f32; 4]| f32x4::transpose(std::array::from_fn(|i| f32x4::new(f(&c[i]))));
+            let a = rows(&|r| [r.origin.x, r.origin.y, r.origin.z, r.dir.x]);
+            let b = rows(&|r| [r.dir.y, r.dir.z, r.t_min, r.t_max]);
+            let v = rows(&|r| [r.inv_dir.x, r.inv_dir.y, r.inv_dir.z, r.shear.x]);
+            let s = rows(&|r| [r.shear.y, r.shear.z, 0.0, 0.0]);
+            let at = 4 * k..4 * k + 4;
+            let put = |row: &mut [f32; N], v: f32x4| row[at.clone()].copy_from_slice(v.as_array());
+            put(&mut out.o[0], a[0]);
+            put(&mut out.o[1], a[1]);
+            put(&mut out.o[2], a[2]);
+            put(&mut out.dir[0], a[3]);
+            put(&mut out.dir[1], b[0]);
+            put(&mut out.dir[2], b[1]);
+            put(&mut out.t_min, b[2]);
+            put(&mut out.t_max, b[3]);
+            put(&mut out.inv[0], v[0]);
+            put(&mut out.inv[1], v[1]);
+            put(&mut out.inv[2], v[2]);
+            // `shear != Vec3::ZERO`: some component not equal to zero.
+            let zero = f32x4::ZERO;
+            let nonzero = !(v[3].simd_eq(zero) & s[0].simd_eq(zero) & s[1].simd_eq(zero));
+            out.valid |= (nonzero.to_bitmask() & 0xf) << (4 * k);
+        }
+        let done = N - chunks.remainder().len();
+        for (l, r) in rays.iter().enumerate().skip(done) {
+            for a in 0..3 {
+                out.o[a][l] = r.origin[a];
+                out.dir[a][l] = r.dir[a];
+                out.inv[a][l] = r.inv_dir[a];
+            }
+            out.t_min[l] = r.t_min;
+            out.t_max[l] = r.t_max;
+            out.valid |= u32::from(r.is_valid()) << l;
+        }
+        out
+    }
+}
+
 impl<const N: usize> PacketBoxes<N> {
     /// The `lanes` of `rays`.
     #[must_use]
     pub fn new(rays: &[Ray; N], lanes: u32) -> Self {
-        let mut valid = 0u32;
-        for (l, r) in rays.iter().enumerate() {
-            valid |= u32::from(r.is_valid()) << l;
-        }
-        // PERF: each field's three values of four lanes transposed at once
-        // (`by_axis`), not gathered value by value.
-        let o = by_axis(rays, |r| r.origin);
-        let inv = by_axis(rays, |r| r.inv_dir);
+        let Laid {
+            o,
+            dir,
+            inv,
+            t_min,
+            t_max,
+            valid,
+        } = Laid::new(rays);
         // Testable lanes and the largest coordinate of their origins.
         // PERF: four lanes at a time on the laid-out values (a lane loop of
         // finiteness tests was half of this function's samples).
@@ -89,9 +154,9 @@ impl<const N: usize> PacketBoxes<N> {
         Self {
             o,
             inv,
-            dir: by_axis(rays, |r| r.dir),
-            t_min: std::array::from_fn(|l| rays[l].t_min),
-            t_max: std::array::from_fn(|l| rays[l].t_max),
+            dir,
+            t_min,
+            t_max,
             valid,
             testable,
             scale,
@@ -347,6 +412,59 @@ mod tests {
 
     use super::*;
     use crate::testing::meshgen;
+
+    /// Rays of random and hard components: zeros of either sign, NaN,
+    /// infinities, subnormals, huge values (valid rays and invalid ones).
+    fn hard_rays(rng: &mut SmallRng, n: usize) -> Vec<Ray> {
+        let special = [0.0, -0.0, 1.0, -1.0, f32::NAN, f32::INFINITY, 1e-40, -3e38, 0.5];
+        let mut c = |rng: &mut SmallRng| {
+            if rng.random_range(0..3) == 0 {
+                special[rng.random_range(0..special.len())]
+            } else {
+                rng.random_range(-4.0..4.0)
+            }
+        };
+        (0..n)
+            .map(|_| {
+                let o = Vec3::new(c(rng), c(rng), c(rng));
+                let d = Vec3::new(c(rng), c(rng), c(rng));
+                let t = [0.0, f32::NAN, 1.0, -2.0][rng.random_range(0..4)];
+                Ray::new(o, d, t, [f32::INFINITY, 5.0, f32::NAN][rng.random_range(0..3)])
+            })
+            .collect()
+    }
+
+    /// The transposed lanes are each ray's own fields, bit for bit, and its
+    /// validity, four lanes at a time and in a remainder of fewer.
+    fn laid_is_each_rays_fields<const N: usize>(rng: &mut SmallRng) {
+        for _ in 0..200 {
+            let v = hard_rays(rng, N);
+            let rays: [Ray; N] = std::array::from_fn(|l| v[l]);
+            let laid = Laid::new(&rays);
+            for (l, r) in rays.iter().enumerate() {
+                for a in 0..3 {
+                    assert_eq!(laid.o[a][l].to_bits(), r.origin[a].to_bits(), "{N}: origin {l}");
+                    assert_eq!(laid.dir[a][l].to_bits(), r.dir[a].to_bits(), "{N}: dir {l}");
+                    assert_eq!(laid.inv[a][l].to_bits(), r.inv_dir[a].to_bits(), "{N}: inv {l}");
+                }
+                assert_eq!(laid.t_min[l].to_bits(), r.t_min.to_bits());
+                assert_eq!(laid.t_max[l].to_bits(), r.t_max.to_bits());
+                assert_eq!(laid.valid & (1 << l) != 0, r.is_valid(), "{N}: lane {l} valid {r:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn rays_laid_out_are_their_fields() {
+        let mut rng = SmallRng::seed_from_u64(0x1a1d);
+        laid_is_each_rays_fields::<4>(&mut rng);
+        laid_is_each_rays_fields::<6>(&mut rng);
+        laid_is_each_rays_fields::<16>(&mut rng);
+        laid_is_each_rays_fields::<32>(&mut rng);
+        // Some of those rays were invalid, some valid.
+        let v = hard_rays(&mut rng, 64);
+        assert!(v.iter().any(Ray::is_valid) && !v.iter().all(Ray::is_valid));
+    }
 
     /// A box of random centre and half-sizes inside the test world.
     fn random_box(rng: &mut SmallRng) -> Aabb {

@@ -148,6 +148,7 @@ impl<const N: usize> PacketBlockRay<N> {
         for (l, r) in rays.iter().enumerate() {
             other |= u32::from((r.kx ^ kx) | (r.ky ^ ky) | (r.kz ^ kz) != 0) << l;
         }
+        let [kx, ky, kz] = first.axes();
         if other & lanes != 0 {
             return None;
         }
