@@ -106,10 +106,10 @@ impl Ray {
             t_min,
             t_max,
             inv_dir,
+            shear,
             kz,
             kx,
             ky,
-            shear,
         }
     }
 
@@ -228,10 +228,10 @@ pub fn rays_from_lanes(out: &mut [Ray], lanes: u32, origin: [f32x4; 3], dir: [f3
             t_min,
             t_max,
             inv_dir: vec(&inv, i),
+            shear: vec(&shear, i),
             kz,
             kx,
             ky,
-            shear: vec(&shear, i),
         };
     }
 }

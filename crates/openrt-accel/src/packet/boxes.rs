@@ -417,7 +417,7 @@ mod tests {
     /// infinities, subnormals, huge values (valid rays and invalid ones).
     fn hard_rays(rng: &mut SmallRng, n: usize) -> Vec<Ray> {
         let special = [0.0, -0.0, 1.0, -1.0, f32::NAN, f32::INFINITY, 1e-40, -3e38, 0.5];
-        let mut c = |rng: &mut SmallRng| {
+        let c = |rng: &mut SmallRng| {
             if rng.random_range(0..3) == 0 {
                 special[rng.random_range(0..special.len())]
             } else {
