@@ -268,6 +268,23 @@ mod tests {
         assert!(r.t_min > r.t_max);
     }
 
+    /// The layout `PacketBoxes::new` reads four floats at a time: 60 bytes,
+    /// the floats in the order origin, dir, t_min, t_max, inv_dir, shear.
+    #[test]
+    fn rays_are_laid_out_as_the_packet_layout_reads_them() {
+        use std::mem::{offset_of, size_of};
+        assert_eq!(size_of::<Ray>(), 60);
+        let at = [
+            offset_of!(Ray, origin),
+            offset_of!(Ray, dir),
+            offset_of!(Ray, t_min),
+            offset_of!(Ray, t_max),
+            offset_of!(Ray, inv_dir),
+            offset_of!(Ray, shear),
+        ];
+        assert_eq!(at, [0, 12, 24, 28, 32, 44]);
+    }
+
     /// Every field of a ray as bits (NaN equal to itself).
     fn bits(r: &Ray) -> ([u32; 14], [u8; 3]) {
         let v = [r.origin, r.dir, r.inv_dir, r.shear];
