@@ -198,7 +198,8 @@ struct Entry {
 
 /// Walks the packet's `lanes` through `nodes` (see the module docs) and
 /// calls `leaf(offset, count, lanes, closest)` for each leaf reached with
-/// the lanes carried into it; the callback lowers `closest` for its hits
+/// the lanes carried into it (with `exact_leaves`, only those whose lane
+/// test meets the leaf's box: scattered packets); the callback lowers `closest` for its hits
 /// and returns the lanes that are done (any hit), which leave the walk.
 /// Returns the lanes done.
 #[inline]
@@ -208,6 +209,7 @@ pub(crate) fn walk_packet<const N: usize, L>(
     lanes: u32,
     closest: &mut [f32; N],
     cull: &Cull<'_>,
+    exact_leaves: bool,
     mut leaf: L,
 ) -> u32
 where
@@ -257,7 +259,20 @@ where
                 while along != 0 {
                     let i = along.trailing_zeros() as usize;
                     along &= along - 1;
-                    kids[n] = (active, near[i], i);
+                    let mut lanes_in = active;
+                    if exact_leaves && node.child[i] & LEAF_BIT != 0 {
+                        // Only the lanes that meet the leaf's box.
+                        lanes_in = 1 << first;
+                        for g in first / 4..lr.groups {
+                            let want = (active >> (4 * g)) & 0xF;
+                            if want == 0 {
+                                continue;
+                            }
+                            let bound = f32x4::new(std::array::from_fn(|i| closest[g * 4 + i]));
+                            lanes_in |= (lr.test(node, i, g, bound).0 & want) << (4 * g);
+                        }
+                    }
+                    kids[n] = (lanes_in, near[i], i);
                     n += 1;
                 }
                 while cand != 0 {
@@ -274,11 +289,23 @@ where
                         let (hit, near) = lr.test(node, i, g, bound);
                         let hit = hit & want;
                         if hit != 0 {
-                            let later = if 4 * g + 4 >= 32 {
+                            let mut later = if 4 * g + 4 >= 32 {
                                 0
                             } else {
                                 active & !((1u32 << (4 * g + 4)) - 1)
                             };
+                            if exact_leaves && node.child[i] & LEAF_BIT != 0 && later != 0 {
+                                let mut exact = 0;
+                                for g2 in g + 1..lr.groups {
+                                    let want = (later >> (4 * g2)) & 0xF;
+                                    if want == 0 {
+                                        continue;
+                                    }
+                                    let bound = f32x4::new(std::array::from_fn(|i| closest[g2 * 4 + i]));
+                                    exact |= (lr.test(node, i, g2, bound).0 & want) << (4 * g2);
+                                }
+                                later = exact;
+                            }
                             let first = hit.trailing_zeros() as usize;
                             kids[n] = ((hit << (4 * g)) | later, near.to_array()[first], i);
                             n += 1;

@@ -867,3 +867,30 @@ fn closest_hit_packets_leave_few_lanes_to_walk_alone() {
     }
     assert!(hit > 40, "{hit} hits of sparse packets");
 }
+
+/// Shadow packets from scattered points towards one light spread wide, so
+/// their leaves take only the lanes that meet their boxes
+/// (`EXACT_LEAF_SPREAD`); every lane still answers as its single ray.
+#[test]
+fn scattered_shadow_packets_answer_as_single_rays() {
+    let bvh = Bvh::build(meshgen::bumpy_sphere(4000, 6, 0.3)).unwrap();
+    let b = Aabb::new(Vec3::splat(-1.3), Vec3::splat(1.3));
+    let light = Vec3::new(3.0, 4.0, -2.0);
+    let rays: Vec<Ray> = meshgen::random_rays(2048, 7, b)
+        .iter()
+        .map(|r| Ray::new(r.origin, light - r.origin, 0.0, 1.0))
+        .collect();
+    let (mut wide, mut blocked) = (0, 0);
+    for c in rays.chunks_exact(32) {
+        let pk: [Ray; 32] = std::array::from_fn(|l| c[l]);
+        let f = crate::packet::frustum::Frustum::for_occluded(&pk, u32::MAX);
+        wide += usize::from(f.is_some_and(|f| f.spread() > super::EXACT_LEAF_SPREAD));
+        let (got, _) = bvh.occluder_packet_in(&pk, u32::MAX, None, None);
+        for (l, ray) in pk.iter().enumerate() {
+            assert_eq!(got & (1 << l) != 0, bvh.occluded(ray), "lane {l}");
+        }
+        blocked += got.count_ones();
+    }
+    assert!(wide >= 48, "{wide} of 64 packets spread wide");
+    assert!(blocked > 100, "{blocked} blocked lanes");
+}

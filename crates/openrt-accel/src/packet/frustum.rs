@@ -96,6 +96,13 @@ pub struct Frustum {
 }
 
 impl Frustum {
+    /// How far the lanes spread: the rectangle's larger side, in units of
+    /// the dominant axis (1 is about 53 degrees).
+    #[must_use]
+    pub(crate) fn spread(&self) -> f32 {
+        (self.rect[1] - self.rect[0]).max(self.rect[3] - self.rect[2])
+    }
+
     /// The frustum of the `lanes` of `rays`: `None` unless they share their
     /// origin bit for bit and point the same way along one axis, where
     /// every direction component is finite; `None` too when culling is off
