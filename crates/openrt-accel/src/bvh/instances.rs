@@ -240,18 +240,10 @@ impl InstanceBvh {
         let lr = LaneRays::from_laid(boxes);
         let cull = Cull::of(frustum, Some(boxes), live);
         finished
-            | walk_packet(
-                &self.nodes,
-                &lr,
-                live,
-                closest,
-                &cull,
-                false,
-                |off, count, active, closest| {
-                    let (items, quads) = self.leaf(off, count);
-                    leaf(items, quads, active, closest)
-                },
-            )
+            | walk_packet(&self.nodes, &lr, live, closest, &cull, |off, count, active, closest| {
+                let (items, quads) = self.leaf(off, count);
+                leaf(items, quads, active, closest)
+            })
     }
 
     /// Checks the tree against `boxes`: every usable box in exactly one

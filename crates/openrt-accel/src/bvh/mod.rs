@@ -159,7 +159,7 @@ const ALONE_SHARE: usize = 3;
 
 /// Any-hit packets whose frustum spreads wider than this
 /// ([`Frustum::spread`], units of the dominant axis) give each leaf only the
-/// lanes that meet its box ([`packet::walk_packet`]'s `exact_leaves`).
+/// lanes that meet its box ([`packet::Cull::with_exact_leaves`]).
 ///
 /// PERF: scattered shadow rays towards one light (bounce hits) carried
 /// lanes into leaves their rays miss: 4.8 leaf visits and 24.5 triangle
@@ -543,59 +543,51 @@ impl Bvh {
         let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let mut brs: Option<[BlockRay; N]> = None;
         let mut ties = [NO_TIE; N];
-        packet::walk_packet(
-            &self.nodes,
-            &lr,
-            live,
-            closest,
-            &cull,
-            false,
-            |off, count, active, closest| {
-                let leaf = KdNode::leaf(off, count);
-                if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
-                    leaf_packet(
-                        pbr,
-                        rays,
-                        frustum,
-                        active,
-                        leaf,
-                        &self.prim_ids,
-                        &self.blocks,
-                        closest,
-                        Some(&mut ties),
-                        None,
-                        |h, prim, closest| {
-                            for l in lanes_of(h.hit) {
-                                let (t, b1, b2) = h.lane(l);
-                                closest[l] = t;
-                                hits[l] = Some(Hit { t, prim, b1, b2 });
-                            }
-                            found |= h.hit;
-                            0
-                        },
-                    );
-                    return 0;
+        packet::walk_packet(&self.nodes, &lr, live, closest, &cull, |off, count, active, closest| {
+            let leaf = KdNode::leaf(off, count);
+            if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {
+                leaf_packet(
+                    pbr,
+                    rays,
+                    frustum,
+                    active,
+                    leaf,
+                    &self.prim_ids,
+                    &self.blocks,
+                    closest,
+                    Some(&mut ties),
+                    None,
+                    |h, prim, closest| {
+                        for l in lanes_of(h.hit) {
+                            let (t, b1, b2) = h.lane(l);
+                            closest[l] = t;
+                            hits[l] = Some(Hit { t, prim, b1, b2 });
+                        }
+                        found |= h.hit;
+                        0
+                    },
+                );
+                return 0;
+            }
+            let brs = brs.get_or_insert_with(|| std::array::from_fn(|l| BlockRay::new(&rays[l])));
+            for l in lanes_of(active) {
+                if let Some((prim, (t, b1, b2))) = leaf_closest(
+                    &rays[l],
+                    &brs[l],
+                    leaf,
+                    &self.prim_ids,
+                    &self.blocks,
+                    closest[l],
+                    ties[l],
+                ) {
+                    ties[l] = prim;
+                    closest[l] = t;
+                    hits[l] = Some(Hit { t, prim, b1, b2 });
+                    found |= 1 << l;
                 }
-                let brs = brs.get_or_insert_with(|| std::array::from_fn(|l| BlockRay::new(&rays[l])));
-                for l in lanes_of(active) {
-                    if let Some((prim, (t, b1, b2))) = leaf_closest(
-                        &rays[l],
-                        &brs[l],
-                        leaf,
-                        &self.prim_ids,
-                        &self.blocks,
-                        closest[l],
-                        ties[l],
-                    ) {
-                        ties[l] = prim;
-                        closest[l] = t;
-                        hits[l] = Some(Hit { t, prim, b1, b2 });
-                        found |= 1 << l;
-                    }
-                }
-                0
-            },
-        );
+            }
+            0
+        });
         found
     }
 
@@ -637,7 +629,9 @@ impl Bvh {
             None => Frustum::for_occluded(rays, live),
         });
         let frustum = prep.frustum();
-        let cull = prep.cull(live);
+        let cull = prep
+            .cull(live)
+            .with_exact_leaves(frustum.is_some_and(|f| f.spread() > EXACT_LEAF_SPREAD));
         let lr = laid_out.map_or_else(|| packet::LaneRays::new(rays), packet::LaneRays::from_laid);
         let pbr = PacketBlockRay::new_in(rays, laid_out, live);
         let mut brs: Option<[BlockRay; N]> = None;
@@ -647,7 +641,6 @@ impl Bvh {
             live,
             &mut closest,
             &cull,
-            frustum.is_some_and(|f| f.spread() > EXACT_LEAF_SPREAD),
             |off, count, active, closest| {
                 let leaf = KdNode::leaf(off, count);
                 let hit = if let Some(pbr) = pbr.as_ref().filter(|_| dense::<N>(active)) {

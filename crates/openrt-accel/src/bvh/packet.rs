@@ -147,8 +147,17 @@ fn decide(near: f32x4, far: f32x4, closest: f32x4) -> (u32, f32x4) {
     (near.simd_le(far).to_bitmask() & 0xF, near)
 }
 
-/// Whole-packet culling of a node's children.
-pub(crate) enum Cull<'a> {
+/// Whole-packet culling of a node's children, and whether leaves take only
+/// the lanes that meet their boxes.
+pub(crate) struct Cull<'a> {
+    by: CullBy<'a>,
+    /// Lanes carried into a leaf child are tested against its box first
+    /// (scattered packets: `super::EXACT_LEAF_SPREAD`).
+    exact_leaves: bool,
+}
+
+/// What culls a packet's children.
+enum CullBy<'a> {
     /// The lanes' frustum.
     Frustum(&'a Frustum),
     /// Interval arithmetic over the lanes (and the largest bound of the packet).
@@ -165,10 +174,23 @@ impl Cull<'_> {
         boxes: Option<&PacketBoxes<N>>,
         lanes: u32,
     ) -> Cull<'a> {
-        match (frustum, boxes) {
-            (Some(f), _) => Cull::Frustum(f),
-            (None, Some(b)) => PacketInterval::new(b, lanes).map_or(Cull::None, Cull::Interval),
-            (None, None) => Cull::None,
+        let by = match (frustum, boxes) {
+            (Some(f), _) => CullBy::Frustum(f),
+            (None, Some(b)) => PacketInterval::new(b, lanes).map_or(CullBy::None, CullBy::Interval),
+            (None, None) => CullBy::None,
+        };
+        Cull {
+            by,
+            exact_leaves: false,
+        }
+    }
+
+    /// The same culling, with leaves taking only the lanes that meet their
+    /// boxes when `on`.
+    pub(crate) fn with_exact_leaves(self, on: bool) -> Self {
+        Self {
+            exact_leaves: on,
+            ..self
         }
     }
 
@@ -180,10 +202,10 @@ impl Cull<'_> {
             min: node.lo,
             max: node.hi,
         };
-        match self {
-            Cull::Frustum(f) => f.rejects_box_quad(&quad()),
-            Cull::Interval(iv) => iv.rejects_box_quad(&quad(), t_max()),
-            Cull::None => 0,
+        match &self.by {
+            CullBy::Frustum(f) => f.rejects_box_quad(&quad()),
+            CullBy::Interval(iv) => iv.rejects_box_quad(&quad(), t_max()),
+            CullBy::None => 0,
         }
     }
 }
@@ -198,9 +220,10 @@ struct Entry {
 
 /// Walks the packet's `lanes` through `nodes` (see the module docs) and
 /// calls `leaf(offset, count, lanes, closest)` for each leaf reached with
-/// the lanes carried into it (with `exact_leaves`, only those whose lane
-/// test meets the leaf's box: scattered packets); the callback lowers `closest` for its hits
-/// and returns the lanes that are done (any hit), which leave the walk.
+/// the lanes carried into it (only those whose lane test meets the leaf's
+/// box, for a `cull` with exact leaves); the callback lowers `closest` for
+/// its hits and returns the lanes that are done (any hit), which leave the
+/// walk.
 /// Returns the lanes done.
 #[inline]
 pub(crate) fn walk_packet<const N: usize, L>(
@@ -209,7 +232,6 @@ pub(crate) fn walk_packet<const N: usize, L>(
     lanes: u32,
     closest: &mut [f32; N],
     cull: &Cull<'_>,
-    exact_leaves: bool,
     mut leaf: L,
 ) -> u32
 where
@@ -218,6 +240,7 @@ where
     if nodes.is_empty() || lanes == 0 {
         return 0;
     }
+    let exact_leaves = cull.exact_leaves;
     let mut live = lanes;
     // PERF: not zeroed; entries are written before they are read.
     let mut stack = [std::mem::MaybeUninit::<Entry>::uninit(); STACK];
