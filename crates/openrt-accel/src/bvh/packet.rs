@@ -118,6 +118,21 @@ impl LaneRays {
         decide(near, far, closest)
     }
 
+    /// The lanes of `lanes` whose test against child `i` of `node` meets
+    /// it ([`LaneRays::test`] group by group, each lane up to its `closest`).
+    #[inline]
+    pub(super) fn meeting<const N: usize>(&self, node: &BvhNode, i: usize, lanes: u32, closest: &[f32; N]) -> u32 {
+        let mut met = 0;
+        for g in 0..self.groups {
+            let want = (lanes >> (4 * g)) & 0xF;
+            if want != 0 {
+                let bound = f32x4::new(std::array::from_fn(|k| closest[g * 4 + k]));
+                met |= (self.test(node, i, g, bound).0 & want) << (4 * g);
+            }
+        }
+        met
+    }
+
     /// The same test for one lane `l` against all four children of `node`
     /// at once: lane `l`'s bits of [`LaneRays::test`] child by child.
     #[inline]
@@ -282,19 +297,12 @@ where
                 while along != 0 {
                     let i = along.trailing_zeros() as usize;
                     along &= along - 1;
-                    let mut lanes_in = active;
-                    if exact_leaves && node.child[i] & LEAF_BIT != 0 {
-                        // Only the lanes that meet the leaf's box.
-                        lanes_in = 1 << first;
-                        for g in first / 4..lr.groups {
-                            let want = (active >> (4 * g)) & 0xF;
-                            if want == 0 {
-                                continue;
-                            }
-                            let bound = f32x4::new(std::array::from_fn(|i| closest[g * 4 + i]));
-                            lanes_in |= (lr.test(node, i, g, bound).0 & want) << (4 * g);
-                        }
-                    }
+                    // Only the lanes that meet a leaf's box, when exact.
+                    let lanes_in = if exact_leaves && node.child[i] & LEAF_BIT != 0 {
+                        (1 << first) | lr.meeting(node, i, active & !(1 << first), closest)
+                    } else {
+                        active
+                    };
                     kids[n] = (lanes_in, near[i], i);
                     n += 1;
                 }
@@ -317,17 +325,8 @@ where
                             } else {
                                 active & !((1u32 << (4 * g + 4)) - 1)
                             };
-                            if exact_leaves && node.child[i] & LEAF_BIT != 0 && later != 0 {
-                                let mut exact = 0;
-                                for g2 in g + 1..lr.groups {
-                                    let want = (later >> (4 * g2)) & 0xF;
-                                    if want == 0 {
-                                        continue;
-                                    }
-                                    let bound = f32x4::new(std::array::from_fn(|i| closest[g2 * 4 + i]));
-                                    exact |= (lr.test(node, i, g2, bound).0 & want) << (4 * g2);
-                                }
-                                later = exact;
+                            if exact_leaves && node.child[i] & LEAF_BIT != 0 {
+                                later = lr.meeting(node, i, later, closest);
                             }
                             let first = hit.trailing_zeros() as usize;
                             kids[n] = ((hit << (4 * g)) | later, near.to_array()[first], i);
